@@ -1,0 +1,147 @@
+"""Turn the evaluated Blender scene into rigid mesh parts (numpy), with labels and motion.
+
+Every render-visible object instance that yields triangles (meshes, curves, text, metaballs;
+modifiers, geometry nodes and instancing evaluated) becomes one :class:`MeshPart`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from ..geometry.parts import MeshPart, closed_and_orientation
+from .animation import dynamic_object_names
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+SPAWN_LABEL = "CameraSpawn"
+_SUFFIX = re.compile(r"\.\d{3,}$")
+
+
+def label_of(name: str) -> str:
+    """Semantic label of an object: its name without Blender's ``.NNN`` duplicate suffix."""
+    return _SUFFIX.sub("", name)
+
+
+@dataclass
+class DynamicBinding:
+    """How to recompute a dynamic part's matrix at another frame.
+
+    world_from_object(t) = world(driver, t) @ offset, where ``driver`` is the object whose
+    evaluated matrix moves the part (the object itself, or the instancer of an instance).
+    """
+
+    part: int
+    driver: str
+    offset: np.ndarray
+
+
+def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
+    nv = len(mesh.vertices)
+    co = np.empty(nv * 3, dtype=np.float64)
+    mesh.vertices.foreach_get("co", co)
+    mesh.calc_loop_triangles()
+    nt = len(mesh.loop_triangles)
+    tri = np.empty(nt * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tri)
+    return co.reshape(nv, 3), tri.reshape(nt, 3)
+
+
+def _evaluated_mesh(obj, cache: dict):
+    """(vertices, faces, closed, outward) of an evaluated object, cached per mesh datablock."""
+    data = obj.data
+    key = data.as_pointer() if (obj.type == "MESH" and data is not None) else None
+    if key is not None and key in cache:
+        return cache[key]
+    if obj.type == "MESH":
+        verts, faces = _mesh_arrays(data)
+    else:
+        mesh = obj.to_mesh()
+        try:
+            verts, faces = _mesh_arrays(mesh) if mesh is not None else (np.zeros((0, 3)), np.zeros((0, 3), np.int32))
+        finally:
+            obj.to_mesh_clear()
+    closed, outward = closed_and_orientation(verts, faces) if len(faces) else (False, 1)
+    result = (verts, faces, closed, outward)
+    if key is not None:
+        cache[key] = result
+    return result
+
+
+def _matrix(m) -> np.ndarray:
+    return np.array(m, dtype=np.float64)
+
+
+@dataclass
+class ExtractedScene:
+    parts: list[MeshPart]
+    bindings: list[DynamicBinding]
+    spawn: MeshPart | None
+
+
+def extract_parts() -> ExtractedScene:
+    """Parts of the current frame, sorted by a stable key (name; instances by instancer,
+    name and persistent id). Static parts are baked into world coordinates."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    dynamic = dynamic_object_names()
+    cache: dict = {}
+    found = []
+    spawn = None
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in GEOMETRY_TYPES:
+            continue
+        if inst.is_instance:
+            if not inst.show_self:
+                continue
+            parent = inst.parent
+            name = obj.original.name if obj.original is not None else obj.name
+            pid = "-".join(str(i) for i in inst.persistent_id if i != 0x7FFFFFFF)
+            key = f"{parent.name}/{name}#{pid}"
+            driver = parent.original.name if parent.original is not None else parent.name
+            is_dyn = driver in dynamic
+            parent_world = _matrix(parent.matrix_world)
+        else:
+            if not inst.show_self:
+                continue
+            name = obj.original.name if obj.original is not None else obj.name
+            key, driver = name, name
+            is_dyn = name in dynamic
+            parent_world = None
+        world = _matrix(inst.matrix_world)
+        verts, faces, closed, outward = _evaluated_mesh(obj, cache)
+        if len(faces) == 0:
+            continue
+        label = label_of(name)
+        if label == SPAWN_LABEL:
+            wv = verts @ world[:3, :3].T + world[:3, 3]
+            c, o = closed_and_orientation(wv, faces)
+            spawn = MeshPart(key, label, wv, faces.copy(), closed=c, outward=o)
+            continue
+        found.append((key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world))
+
+    found.sort(key=lambda f: f[0])
+    parts, bindings = [], []
+    for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world in found:
+        if is_dyn:
+            offset = np.linalg.inv(parent_world) @ world if parent_world is not None else np.eye(4)
+            bindings.append(DynamicBinding(len(parts), driver, offset))
+            parts.append(MeshPart(key, label, verts.copy(), faces, True, world, closed, outward))
+        else:
+            wv = verts @ world[:3, :3].T + world[:3, 3]
+            if np.linalg.det(world[:3, :3]) < 0:
+                outward = -outward  # a mirroring matrix flips the winding
+            parts.append(MeshPart(key, label, wv, faces, False, np.eye(4), closed, outward))
+    return ExtractedScene(parts, bindings, spawn)
+
+
+def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
+    """world_from_object of every dynamic part at the current frame."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out = {}
+    for b in bindings:
+        obj = bpy.data.objects[b.driver].evaluated_get(depsgraph)
+        out[b.part] = _matrix(obj.matrix_world) @ b.offset
+    return out

@@ -1,0 +1,149 @@
+"""The one place that owns Blender's global state: importing bpy, loading files, silencing logs.
+
+Blender holds a single open file per process. :func:`open_blend` loads one and bumps a
+generation counter so that objects built on an older file can tell they are stale.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+if "open3d" in sys.modules and "bpy" not in sys.modules:
+    # open3d's libtbb is already loaded and bpy would fail with an undefined TBB symbol.
+    raise ImportError(
+        "open3d was imported before bpy; import generator (or bpy) first, or load open3d "
+        "through generator.geometry.o3d.import_open3d()"
+    )
+
+import bpy  # noqa: E402
+
+_generation = 0
+_log_path: Path | None = None
+
+BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
+
+
+class BlendFileError(ValueError):
+    """A .blend file is missing, unreadable or unusable."""
+
+
+def log_path() -> Path:
+    """File that receives Blender's own log output (per process)."""
+    global _log_path
+    if _log_path is None:
+        env = os.environ.get("BUILDEE_BLENDER_LOG")
+        _log_path = Path(env) if env else Path(tempfile.gettempdir()) / f"buildee-blender-{os.getpid()}.log"
+    return _log_path
+
+
+def set_log_path(path: str | os.PathLike) -> None:
+    """Send Blender's log output to ``path`` from now on (e.g. a seed's output folder)."""
+    global _log_path
+    _log_path = Path(path)
+
+
+@contextlib.contextmanager
+def quiet():
+    """Redirect the process's stdout and stderr file descriptors to the Blender log file.
+
+    Blender writes its log lines from C straight to fd 1 and 2; Python's own streams are
+    flushed first so nothing is lost or reordered.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    with open(log_path(), "ab") as log:
+        os.dup2(log.fileno(), 1)
+        os.dup2(log.fileno(), 2)
+        try:
+            yield
+        finally:
+            with contextlib.suppress(Exception):
+                sys.stdout.flush()
+                sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+
+
+def generation() -> int:
+    """Counter of files loaded in this process."""
+    return _generation
+
+
+def open_blend(path: str | os.PathLike) -> None:
+    """Load a .blend file, replacing whatever Blender had open. Raises BlendFileError."""
+    global _generation
+    p = Path(path)
+    if not p.exists():
+        raise BlendFileError(f"blend file not found: {p}")
+    if not p.is_file():
+        raise BlendFileError(f"blend file path is not a file: {p}")
+    with open(p, "rb") as f:
+        head = f.read(8)
+    if not any(head.startswith(m) for m in BLEND_MAGIC):
+        raise BlendFileError(f"not a Blender file (bad header): {p}")
+    try:
+        with quiet():
+            bpy.ops.wm.open_mainfile(filepath=str(p.resolve()), load_ui=False)
+    except RuntimeError as exc:
+        raise BlendFileError(f"Blender could not read {p}: {str(exc).strip().splitlines()[-1]}") from None
+    _generation += 1
+
+
+def new_empty_file() -> None:
+    """Reset Blender to an empty file (used to build scenes in code)."""
+    global _generation
+    with quiet():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+    _generation += 1
+
+
+def save_blend(path: str | os.PathLike, compress: bool = True) -> None:
+    """Save the open file to ``path`` (zstd-compressed by default)."""
+    with quiet():
+        bpy.ops.wm.save_as_mainfile(filepath=str(Path(path).resolve()), compress=compress, copy=True)
+
+
+def set_frame(frame: int) -> None:
+    """Move the scene to ``frame`` and re-evaluate animation."""
+    with quiet():
+        bpy.context.scene.frame_set(int(frame))
+
+
+def make_viewport_match_render() -> None:
+    """Make the (viewport) evaluated depsgraph hold exactly what a render would show.
+
+    In background mode Python only gets the viewport depsgraph, so render-visibility and
+    render settings are copied onto their viewport counterparts: object and collection
+    visibility, modifier enablement, subdivision levels and simplify settings.
+    """
+    scene = bpy.context.scene
+    for obj in bpy.data.objects:
+        obj.hide_viewport = obj.hide_render
+        for mod in obj.modifiers:
+            mod.show_viewport = mod.show_render
+            if hasattr(mod, "render_levels") and hasattr(mod, "levels"):
+                mod.levels = mod.render_levels
+    for coll in bpy.data.collections:
+        coll.hide_viewport = coll.hide_render
+
+    def visit(layer_coll):
+        layer_coll.hide_viewport = False
+        for child in layer_coll.children:
+            visit(child)
+
+    for view_layer in scene.view_layers:
+        visit(view_layer.layer_collection)
+        for obj in view_layer.objects:
+            if obj.hide_get(view_layer=view_layer):
+                obj.hide_set(False, view_layer=view_layer)
+    r = scene.render
+    r.simplify_subdivision = r.simplify_subdivision_render
+    r.simplify_child_particles = r.simplify_child_particles_render
+    bpy.context.view_layer.update()

@@ -1,0 +1,186 @@
+"""Pinhole camera model and pose conventions (the single implementation used everywhere).
+
+Conventions (docs/conventions.md):
+- World: right-handed, Z up, metres.
+- Camera frame: OpenCV/COLMAP, x right, y down, z forward. Blender's camera frame is this
+  one rotated 180 degrees about x.
+- Poses are ``world_from_camera`` 4x4 matrices (camera-to-world).
+- Pixels: the image's top-left corner is (0, 0); the centre of pixel (row i, col j) is
+  (j + 0.5, i + 0.5). ``K`` maps camera coordinates to these continuous pixel coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Blender camera frame (x right, y up, z backward) -> OpenCV camera frame.
+CV_FROM_BLENDER_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])
+
+RIGID_TOLERANCE = 1e-5
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics: image size in pixels and the 3x3 matrix ``K`` (pixels)."""
+
+    width: int
+    height: int
+    K: np.ndarray
+
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+
+def intrinsics_from_blender(
+    width: int,
+    height: int,
+    lens_mm: float,
+    sensor_width_mm: float,
+    sensor_height_mm: float,
+    sensor_fit: str,
+    shift_x: float = 0.0,
+    shift_y: float = 0.0,
+    pixel_aspect_x: float = 1.0,
+    pixel_aspect_y: float = 1.0,
+) -> Intrinsics:
+    """K of a Blender perspective camera for a render of ``width`` x ``height`` pixels.
+
+    Follows Blender's own rules: with ``AUTO`` fit the sensor width spans the larger image
+    dimension; ``HORIZONTAL`` / ``VERTICAL`` span the width / height. Lens shift is in units
+    of the larger (fitted) image dimension, positive x right and positive y up.
+    """
+    if width <= 0 or height <= 0:
+        raise ValueError(f"image size must be positive, got {width}x{height}")
+    if lens_mm <= 0:
+        raise ValueError(f"focal length must be positive, got {lens_mm} mm")
+    aspect = pixel_aspect_x / pixel_aspect_y  # pixel width / pixel height
+    if sensor_fit == "AUTO":
+        fit = "HORIZONTAL" if width * pixel_aspect_x >= height * pixel_aspect_y else "VERTICAL"
+        sensor_mm = sensor_width_mm
+    elif sensor_fit == "HORIZONTAL":
+        fit, sensor_mm = "HORIZONTAL", sensor_width_mm
+    elif sensor_fit == "VERTICAL":
+        fit, sensor_mm = "VERTICAL", sensor_height_mm
+    else:
+        raise ValueError(f"unknown sensor fit {sensor_fit!r}")
+    # Number of (horizontal-unit) pixels spanned by the sensor.
+    view_px = width if fit == "HORIZONTAL" else aspect * height
+    fx = lens_mm / sensor_mm * view_px
+    fy = fx * aspect
+    cx = width / 2.0 - shift_x * view_px
+    cy = height / 2.0 + shift_y * view_px * aspect
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    return Intrinsics(int(width), int(height), K)
+
+
+def orthonormalize(rotation: np.ndarray) -> np.ndarray:
+    """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale."""
+    u, _, vt = np.linalg.svd(rotation)
+    r = u @ vt
+    if np.linalg.det(r) < 0:
+        u[:, -1] *= -1
+        r = u @ vt
+    return r
+
+
+def world_from_camera_from_blender(matrix_world: np.ndarray) -> np.ndarray:
+    """OpenCV ``world_from_camera`` from a Blender camera object's ``matrix_world``.
+
+    Scale on the Blender camera object does not change its projection, so it is removed.
+    """
+    m = np.asarray(matrix_world, dtype=np.float64)
+    out = np.eye(4)
+    out[:3, :3] = orthonormalize(m[:3, :3])
+    out[:3, 3] = m[:3, 3]
+    return out @ CV_FROM_BLENDER_CAMERA
+
+
+def blender_from_world_from_camera(world_from_camera: np.ndarray) -> np.ndarray:
+    """Blender camera ``matrix_world`` for an OpenCV ``world_from_camera`` pose."""
+    return np.asarray(world_from_camera, dtype=np.float64) @ CV_FROM_BLENDER_CAMERA
+
+
+def validate_rigid(matrix: np.ndarray, tolerance: float = RIGID_TOLERANCE) -> np.ndarray:
+    """Return ``matrix`` as a float64 4x4 rigid transform, or raise ValueError saying why not."""
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise ValueError(f"pose must be a 4x4 matrix, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError("pose contains NaN or inf")
+    if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0], atol=tolerance):
+        raise ValueError(f"pose's last row must be [0, 0, 0, 1], got {m[3].tolist()}")
+    r = m[:3, :3]
+    if not np.allclose(r.T @ r, np.eye(3), atol=tolerance):
+        raise ValueError("pose's rotation block is not orthonormal (scale or shear); pass a rigid transform")
+    if np.linalg.det(r) < 0:
+        raise ValueError("pose's rotation block has determinant -1 (a reflection); pass a rigid transform")
+    return m
+
+
+def invert_rigid(m: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform."""
+    out = np.eye(4)
+    r = m[:3, :3]
+    out[:3, :3] = r.T
+    out[:3, 3] = -r.T @ m[:3, 3]
+    return out
+
+
+def world_to_camera(points_world: np.ndarray, world_from_camera: np.ndarray) -> np.ndarray:
+    """Points (N, 3) from world to OpenCV camera coordinates."""
+    r = world_from_camera[:3, :3]
+    t = world_from_camera[:3, 3]
+    return (np.asarray(points_world) - t) @ r
+
+
+def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray):
+    """Project world points: returns pixel coordinates (N, 2) as (x, y) and planar depth z (N,).
+
+    Points behind the camera get z <= 0 and meaningless pixel coordinates.
+    """
+    pc = world_to_camera(points_world, world_from_camera)
+    z = pc[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = K[0, 0] * pc[:, 0] / z + K[0, 1] * pc[:, 1] / z + K[0, 2]
+        v = K[1, 1] * pc[:, 1] / z + K[1, 2]
+    return np.stack([u, v], axis=1), z
+
+
+def pixel_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Camera-frame directions (H, W, 3) through pixel centres, scaled so that z = 1."""
+    j, i = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    y = (i - K[1, 2]) / K[1, 1]
+    x = (j - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    return np.stack([x, y, np.ones_like(x)], axis=-1)
+
+
+def depth_to_world_points(depth: np.ndarray, K: np.ndarray, world_from_camera: np.ndarray) -> np.ndarray:
+    """Unproject a planar depth map (H, W) in metres to world points (H, W, 3).
+
+    Each pixel is unprojected through its centre. Pixels with non-finite or non-positive
+    depth (no surface) give NaN.
+    """
+    depth = np.asarray(depth, dtype=np.float64)
+    if depth.ndim != 2:
+        raise ValueError(f"depth must be a 2D (H, W) array, got shape {depth.shape}")
+    h, w = depth.shape
+    rays = pixel_rays(K, w, h)
+    valid = np.isfinite(depth) & (depth > 0)
+    pc = rays * np.where(valid, depth, np.nan)[..., None]
+    r = world_from_camera[:3, :3]
+    return pc @ r.T + world_from_camera[:3, 3]

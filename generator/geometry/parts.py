@@ -1,0 +1,67 @@
+"""Rigid mesh parts: the numpy description of a scene's geometry, shared by every consumer."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+
+@dataclass
+class MeshPart:
+    """One object's triangles in its own frame.
+
+    ``vertices`` (V, 3) metres in the object frame, ``faces`` (F, 3) vertex indices.
+    Static parts are stored in world coordinates (``matrix`` is the identity); dynamic parts
+    keep their object frame and ``matrix`` (4x4, world_from_object) follows the animation.
+    ``closed`` means every edge is shared by exactly two consistently oriented faces, so the
+    part bounds a solid; ``outward`` is +1 if face normals (right-hand rule) point out of
+    that solid, -1 if they point in.
+    """
+
+    name: str
+    label: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    dynamic: bool = False
+    matrix: np.ndarray = field(default_factory=lambda: np.eye(4))
+    closed: bool = False
+    outward: int = 1
+
+    def world_vertices(self) -> np.ndarray:
+        m = self.matrix
+        return self.vertices @ m[:3, :3].T + m[:3, 3]
+
+
+def closed_and_orientation(vertices: np.ndarray, faces: np.ndarray) -> tuple[bool, int]:
+    """Whether a triangle mesh bounds a solid (watertight, consistently oriented, non-zero
+    volume), and the sign of its signed volume (+1: normals point outward)."""
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(faces) < 4:
+        return False, 1
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    nv = int(faces.max()) + 1
+    codes = directed[:, 0] * nv + directed[:, 1]
+    reverse = directed[:, 1] * nv + directed[:, 0]
+    codes_sorted = np.sort(codes)
+    if np.any(codes_sorted[1:] == codes_sorted[:-1]):
+        return False, 1  # a directed edge used twice: inconsistent orientation or non-manifold
+    if not np.array_equal(codes_sorted, np.sort(reverse)):
+        return False, 1  # an edge with no opposite half-edge: a boundary
+    v = np.asarray(vertices, dtype=np.float64)
+    v = v - v.mean(axis=0)
+    a, b, c = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
+    volume = float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
+    scale = float(np.abs(v).max()) if len(v) else 0.0
+    if abs(volume) <= 1e-9 * max(scale, 1e-9) ** 3:
+        return False, 1
+    return True, 1 if volume > 0 else -1
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normals (F, 3) by the right-hand rule; zero for degenerate faces."""
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)

@@ -1,0 +1,276 @@
+"""The paper's interactive API (section 3.1): ``from generator import Simulator``."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .blender import session  # imports bpy first (before open3d)
+from .blender import camera as bcam
+from .blender.extract import dynamic_matrices, extract_parts
+from .geometry import camera as cam_model
+from .geometry.collision import position_is_free, segment_is_free
+from .geometry.raycast import SceneGeometry
+from .geometry.seeding import stream
+from .geometry.spawn import sample_spawn_points
+from .geometry.surface_points import SurfacePoints
+from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
+
+
+class SceneError(ValueError):
+    """The loaded scene cannot be simulated (e.g. it has no geometry)."""
+
+
+def _check_number(name: str, value, low=None, high=None, low_open=False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if math.isnan(v):
+        raise ValueError(f"{name} must be a number, got NaN")
+    if low is not None and (v <= low if low_open else v < low):
+        raise ValueError(f"{name} must be {'>' if low_open else '>='} {low}, got {value!r}")
+    if high is not None and v > high:
+        raise ValueError(f"{name} must be <= {high}, got {value!r}")
+    return v
+
+
+class Simulator:
+    """A camera flying through a Blender scene, with ground-truth surface points.
+
+    Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
+    4x4 matrices (x right, y down, z forward; world Z up). See docs/conventions.md.
+
+    Args:
+        blend_file: path to the .blend scene. Blender holds one file per process, so only
+            the most recently created Simulator is usable.
+        points_density: surface points sampled per square metre (> 0).
+        segmentation_sensitivity: in [0, 1]; used by ``render()`` (the paper's figure 2).
+        max_pcl_depth: points deeper than this planar depth (metres) are never visible.
+        seed: seeds every random choice (point sampling, spawn points, respawns).
+        collision_radius: radius in metres of the camera's collision sphere (>= 0).
+    """
+
+    def __init__(
+        self,
+        blend_file: str | os.PathLike,
+        points_density: float = 1.0,
+        segmentation_sensitivity: float = 0.1,
+        max_pcl_depth: float = math.inf,
+        seed: int = 0,
+        collision_radius: float = 0.3,
+    ):
+        self.points_density = _check_number("points_density", points_density, low=0, low_open=True)
+        if not math.isfinite(self.points_density):
+            raise ValueError(f"points_density must be finite, got {points_density!r}")
+        self.segmentation_sensitivity = _check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
+        self.max_pcl_depth = _check_number("max_pcl_depth", max_pcl_depth, low=0, low_open=True)
+        self.collision_radius = _check_number("collision_radius", collision_radius, low=0)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        self.seed = int(seed)
+        self.blend_file = Path(blend_file)
+
+        session.open_blend(self.blend_file)
+        self._generation = session.generation()
+        self._camera = bcam.scene_camera()
+        bcam.detach_camera(self._camera)
+        session.make_viewport_match_render()
+
+        intr = bcam.read_intrinsics(self._camera)
+        self.width, self.height = intr.width, intr.height
+        self.K = intr.K
+        self.clip_start, self.clip_end = bcam.clip_range(self._camera)
+
+        extracted = extract_parts()
+        if not extracted.parts:
+            raise SceneError(f"{self.blend_file} has no render-visible mesh objects with faces")
+        self._parts = extracted.parts
+        self._bindings = extracted.bindings
+        self.labels: list[str] = sorted({p.label for p in self._parts})
+        self.label_ids = {name: i for i, name in enumerate(self.labels)}
+        self.object_names: list[str] = [p.name for p in self._parts]
+        self._geometry = SceneGeometry(self._parts)
+        self._points = SurfacePoints(self._parts, self.label_ids, self.points_density, self.seed)
+        self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
+        self.last_visibility = VisibilityStats()
+
+        self._world_from_camera = bcam.read_pose(self._camera)
+        self._initial_pose = self._world_from_camera.copy()
+        self._respawn_rng = stream(self.seed, "respawn")
+        self.spawn_points = (
+            sample_spawn_points(extracted.spawn, self._geometry, self.collision_radius, stream(self.seed, "spawn"))
+            if extracted.spawn is not None
+            else self._initial_pose[None, :3, 3].copy()
+        )
+        self.frame = int(session.bpy.context.scene.frame_current)
+
+    # ---- state checks -------------------------------------------------------------------
+    def _check_current(self) -> None:
+        if self._generation != session.generation():
+            raise RuntimeError("another Simulator (or file) was loaded since this one; Blender holds one scene per process")
+
+    # ---- scene facts ---------------------------------------------------------------------
+    @property
+    def num_points(self) -> int:
+        return len(self._points)
+
+    @property
+    def point_instances(self) -> np.ndarray:
+        """(N,) int32 index into ``object_names`` of the object each point lies on."""
+        return self._points.part.copy()
+
+    @property
+    def dynamic_points_mask(self) -> np.ndarray:
+        """(N,) bool: the point lies on a moving object."""
+        return self._points.dynamic_mask
+
+    @property
+    def dynamic_objects(self) -> list[str]:
+        return [p.name for p in self._parts if p.dynamic]
+
+    @property
+    def coverage(self) -> float:
+        """Share of all surface points observed at least once (0 to 1)."""
+        n = len(self.observed_points_mask)
+        return float(self.observed_points_mask.sum()) / n if n else 0.0
+
+    # ---- point cloud ---------------------------------------------------------------------
+    def compute_point_cloud(self, update_mask: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All surface points at the current frame and which ones the camera sees.
+
+        Returns ``(points (N, 3) float64 world metres, labels (N,) int32, visible (N,) bool)``.
+        With ``update_mask`` the visible points are added to ``observed_points_mask``.
+        """
+        self._check_current()
+        pts = self._points
+        visible = visible_points(
+            self._geometry, pts.world, pts.world_normals, pts.part, self._world_from_camera, self.K,
+            self.width, self.height, ViewLimits(self.clip_start, min(self.clip_end, self.max_pcl_depth)),
+            self.last_visibility,
+        )
+        if update_mask:
+            self.observed_points_mask |= visible
+        return pts.world.copy(), pts.labels.copy(), visible
+
+    def reset_observations(self) -> None:
+        """Forget the observation history (coverage back to 0)."""
+        self.observed_points_mask[:] = False
+
+    def depth_to_world_points(self, depth: np.ndarray) -> np.ndarray:
+        """Unproject a planar depth map (H, W) in metres from the current pose to world
+        points (H, W, 3); pixels without a surface (inf) give NaN."""
+        depth = np.asarray(depth)
+        if depth.shape != (self.height, self.width):
+            raise ValueError(f"depth must have shape {(self.height, self.width)}, got {depth.shape}")
+        return cam_model.depth_to_world_points(depth, self.K, self._world_from_camera)
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel coordinates (N, 2) as (x, y) and planar depths (N,) of world points."""
+        return cam_model.project(np.asarray(points, dtype=np.float64), self._world_from_camera, self.K)
+
+    # ---- camera --------------------------------------------------------------------------
+    def get_world_from_camera(self) -> np.ndarray:
+        """Current camera pose, OpenCV ``world_from_camera`` (4x4, metres)."""
+        return self._world_from_camera.copy()
+
+    def is_free(self, position) -> bool:
+        """True if the camera sphere fits at ``position`` (3,) without touching geometry."""
+        self._check_current()
+        return position_is_free(self._geometry, np.asarray(position, dtype=np.float64), self.collision_radius)
+
+    def can_move(self, start, end) -> bool:
+        """True if the camera sphere can travel in a straight line from ``start`` to ``end``."""
+        self._check_current()
+        return segment_is_free(
+            self._geometry, np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), self.collision_radius
+        )
+
+    def set_world_from_camera(self, matrix, check_collisions: bool = True) -> bool:
+        """Move the camera to a pose; returns True (and leaves the pose unchanged) if the
+        straight move from the current position collides."""
+        self._check_current()
+        m = cam_model.validate_rigid(matrix)
+        if check_collisions and not self.can_move(self._world_from_camera[:3, 3], m[:3, 3]):
+            return True
+        self._world_from_camera = m.copy()
+        bcam.write_pose(m, self._camera)
+        return False
+
+    def _move(self, axis: int, distance: float) -> bool:
+        d = _check_number("distance", distance)
+        m = self._world_from_camera.copy()
+        m[:3, 3] += d * m[:3, axis]
+        return self.set_world_from_camera(m)
+
+    def move_camera_forward(self, distance: float) -> bool:
+        """Move along the optical axis (camera +z) by ``distance`` metres; True if refused."""
+        return self._move(2, distance)
+
+    def move_camera_right(self, distance: float) -> bool:
+        """Move along camera +x by ``distance`` metres; True if refused."""
+        return self._move(0, distance)
+
+    def move_camera_down(self, distance: float) -> bool:
+        """Move along camera +y (image down) by ``distance`` metres; True if refused."""
+        return self._move(1, distance)
+
+    def turn_camera_right(self, angle: float, degrees: bool = True) -> bool:
+        """Turn right (clockwise seen from above) about the world Z axis through the camera
+        centre; the horizon stays level. Never collides (returns False)."""
+        a = _check_number("angle", angle)
+        a = math.radians(a) if degrees else a
+        c, s = math.cos(-a), math.sin(-a)
+        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        m = self._world_from_camera.copy()
+        m[:3, :3] = rz @ m[:3, :3]
+        return self.set_world_from_camera(m, check_collisions=False)
+
+    def respawn_camera(self) -> np.ndarray:
+        """Move the camera to a random free spawn point with a random heading (pitch kept,
+        roll zero). Without a CameraSpawn volume, return to the initial pose. Returns the pose."""
+        self._check_current()
+        if self.spawn_points.shape[0] == 1 and np.allclose(self.spawn_points[0], self._initial_pose[:3, 3]):
+            self.set_world_from_camera(self._initial_pose, check_collisions=False)
+            return self.get_world_from_camera()
+        forward = self._world_from_camera[:3, 2]
+        pitch = math.asin(float(np.clip(forward[2], -0.999, 0.999)))
+        for _ in range(100):
+            p = self.spawn_points[self._respawn_rng.integers(len(self.spawn_points))]
+            yaw = self._respawn_rng.uniform(0.0, 2 * math.pi)
+            if self.is_free(p):
+                break
+        self.set_world_from_camera(_look_pose(p, yaw, pitch), check_collisions=False)
+        return self.get_world_from_camera()
+
+    # ---- time ----------------------------------------------------------------------------
+    def step_frame(self) -> int:
+        """Advance the animation by one frame; dynamic objects and their points move.
+        Returns the new frame number."""
+        self._check_current()
+        self.frame += 1
+        session.set_frame(self.frame)
+        self._geometry.set_matrices(dynamic_matrices(self._bindings))
+        self._points.update(self._parts)
+        bcam.write_pose(self._world_from_camera, self._camera)
+        return self.frame
+
+    # ---- rendering -----------------------------------------------------------------------
+    def render(self):
+        """RGB, depth and semantic maps: provided by the rendering issue (#3)."""
+        raise NotImplementedError("Simulator.render() is not implemented yet (rendering, issue #3)")
+
+
+def _look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
+    """world_from_camera at ``position`` looking along heading ``yaw`` (radians from +X,
+    counter-clockwise) and ``pitch`` (radians above the horizon), with zero roll."""
+    forward = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, down, forward, position
+    return m
