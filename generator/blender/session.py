@@ -7,6 +7,7 @@ generation counter so that objects built on an older file can tell they are stal
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import sys
 import tempfile
@@ -19,10 +20,9 @@ if "open3d" in sys.modules and "bpy" not in sys.modules:
         "through generator.geometry.o3d.import_open3d()"
     )
 
-import bpy  # noqa: E402
-
 _generation = 0
 _log_path: Path | None = None
+_libc = ctypes.CDLL(None)
 
 BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
 
@@ -55,6 +55,7 @@ def quiet():
     """
     sys.stdout.flush()
     sys.stderr.flush()
+    _libc.fflush(None)
     saved = os.dup(1), os.dup(2)
     with open(log_path(), "ab") as log:
         os.dup2(log.fileno(), 1)
@@ -65,10 +66,15 @@ def quiet():
             with contextlib.suppress(Exception):
                 sys.stdout.flush()
                 sys.stderr.flush()
+            _libc.fflush(None)  # Blender's C stdio buffers hold log lines too
             os.dup2(saved[0], 1)
             os.dup2(saved[1], 2)
             os.close(saved[0])
             os.close(saved[1])
+
+
+with quiet():
+    import bpy  # noqa: E402  (its colour-management log line goes to the log file)
 
 
 def generation() -> int:

@@ -1,0 +1,115 @@
+"""Visibility rule: frustum, depth limits, occlusion, grazing angles, back-face shortcut."""
+
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from generator import Simulator
+from generator.geometry.parts import MeshPart
+from generator.geometry.raycast import SceneGeometry
+from generator.geometry.visibility import ViewLimits, visible_points
+
+
+@pytest.fixture(scope="module")
+def walls(tmp_path_factory):
+    return scenes.walls_scene(tmp_path_factory.mktemp("vis") / "walls.blend")
+
+
+def _visibility_of(sim, points):
+    """Visibility of extra probe points, evaluated with the simulator's own rule."""
+    return visible_points(
+        sim._geometry, np.asarray(points, float), None, None, sim.get_world_from_camera(), sim.K,
+        sim.width, sim.height, ViewLimits(sim.clip_start, min(sim.clip_end, sim.max_pcl_depth)),
+    )
+
+
+def test_front_behind_outside_and_depth_limit(walls):
+    sim = Simulator(walls, points_density=20)
+    # the wall's front face is at y = 4.9; camera at (0, 0, 1.5) looking along +Y
+    probes = [
+        (0.0, 4.9, 1.5),    # on the wall's front face: visible
+        (0.0, 5.1, 1.5),    # on the wall's back face: hidden by the wall
+        (0.0, 7.0, 1.5),    # in the air behind the wall: hidden
+        (0.0, 3.0, 1.5),    # in the air in front of the wall: visible
+        (0.0, -1.0, 1.5),   # behind the camera: not visible
+        (30.0, 3.0, 1.5),   # far outside the horizontal field of view
+    ]
+    vis = _visibility_of(sim, probes)
+    assert vis.tolist() == [True, False, False, True, False, False]
+
+    near = Simulator(walls, points_density=20, max_pcl_depth=4.0)
+    vis = _visibility_of(near, [(0.0, 3.0, 1.5), (0.0, 4.5, 1.5)])
+    assert vis.tolist() == [True, False]  # planar depth 3 <= 4 < 4.5
+
+
+def test_all_sampled_points_follow_the_rule(walls):
+    sim = Simulator(walls, points_density=40)
+    pts, labels, vis = sim.compute_point_cloud()
+    wall = sim.labels.index("Wall")
+    crate = sim.labels.index("Crate")
+    uv, z = sim.project(pts)
+    in_image = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < sim.width) & (uv[:, 1] >= 0) & (uv[:, 1] < sim.height)
+    assert not np.any(vis & ~in_image)
+    # wall points on its front face (y = 4.9) in the image are visible; its back face never
+    front = (labels == wall) & (np.abs(pts[:, 1] - 4.9) < 1e-6) & in_image
+    back = (labels == wall) & (np.abs(pts[:, 1] - 5.1) < 1e-6)
+    assert front.sum() > 50 and vis[front].all()
+    assert not vis[back].any()
+    # both crates stand behind/beside the wall at y = 8: their faces pointing at the camera
+    # are visible where not hidden by the wall
+    assert vis[labels == crate].any()
+    assert 0 < sim.coverage < 1
+    assert sim.coverage == pytest.approx(vis.mean())
+
+
+def test_grazing_angle_points_are_visible(tmp_path):
+    scenes.new_scene(64, 48)
+    scenes.add_plane("Ground", (200, 200), (0, 0, 0))
+    cam = scenes.add_camera((0, 0, 0.2), (math.radians(89.0), 0, 0), lens=20)  # 1 degree below the horizon
+    path = scenes.save(tmp_path / "grazing.blend")
+    sim = Simulator(path, points_density=2.0)
+    pts, _, vis = sim.compute_point_cloud()
+    uv, z = sim.project(pts)
+    in_image = (z > 0.1) & (uv[:, 0] >= 0) & (uv[:, 0] < 64) & (uv[:, 1] >= 0) & (uv[:, 1] < 48)
+    far_grazing = in_image & (np.linalg.norm(pts - [0, 0, 0.2], axis=1) > 5)  # seen at < 2.3 degrees
+    assert far_grazing.sum() > 100
+    assert vis[far_grazing].all(), f"{(~vis[far_grazing]).sum()} grazing points wrongly hidden"
+    assert vis[in_image].all()
+
+
+def test_backface_shortcut_never_changes_the_answer(walls):
+    """Rule 3 (skip rays for back faces of solids) must agree with pure ray casting."""
+    sim = Simulator(walls, points_density=30)
+    rng = np.random.default_rng(0)
+    pts = sim._points
+    for _ in range(8):
+        pose = sim.get_world_from_camera()
+        pose[:3, 3] = [rng.uniform(-8, 8), rng.uniform(-4, 14), rng.uniform(0.5, 6)]
+        yaw = rng.uniform(0, 2 * math.pi)
+        c, s = math.cos(yaw), math.sin(yaw)
+        pose[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ pose[:3, :3]
+        args = (sim._geometry, pts.world)
+        tail = (pose, sim.K, sim.width, sim.height, ViewLimits(sim.clip_start, sim.clip_end))
+        fast = visible_points(*args, pts.world_normals, pts.part, *tail)
+        slow = visible_points(*args, None, None, *tail)
+        assert np.array_equal(fast, slow)
+
+
+def test_dynamic_occluder_hides_points():
+    ground = MeshPart("Ground", "Ground", np.array([[-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0.0]]),
+                      np.array([[0, 1, 2], [0, 2, 3]]))
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    box = MeshPart("Box", "Box", v, f, dynamic=True, matrix=np.eye(4))
+    geo = SceneGeometry([ground, box])
+    pose = np.array([[1, 0, 0, 0], [0, 0, 1, -10], [0, -1, 0, 3], [0, 0, 0, 1.0]])  # looking along +Y
+    K = np.array([[50, 0, 32], [0, 50, 24], [0, 0, 1.0]])
+    probe = np.array([[0.0, 5.0, 3.0]])  # in the air behind where the box will be
+    moved = np.eye(4)
+    moved[:3, 3] = [0, 0, 3]
+    assert visible_points(geo, probe, None, None, pose, K, 64, 48)[0]
+    geo.set_matrices({1: moved})
+    assert not visible_points(geo, probe, None, None, pose, K, 64, 48)[0]
