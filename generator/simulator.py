@@ -143,7 +143,9 @@ class Simulator:
         """All surface points at the current frame and which ones the camera sees.
 
         Returns ``(points (N, 3) float64 world metres, labels (N,) int32, visible (N,) bool)``.
-        With ``update_mask`` the visible points are added to ``observed_points_mask``.
+        ``points`` and ``labels`` are read-only and are not modified by later calls (copy
+        them to edit). With ``update_mask`` the visible points are added to
+        ``observed_points_mask``.
         """
         self._check_current()
         pts = self._points
@@ -154,7 +156,7 @@ class Simulator:
         )
         if update_mask:
             self.observed_points_mask |= visible
-        return pts.world.copy(), pts.labels.copy(), visible
+        return pts.world, pts.labels, visible
 
     def reset_observations(self) -> None:
         """Forget the observation history (coverage back to 0)."""

@@ -44,6 +44,7 @@ class SurfacePoints:
         self.dynamic_parts = [i for i, p in enumerate(parts) if p.dynamic]
         self.world = self.local.copy()
         self.world_normals = self.local_normals.copy()
+        self.labels.flags.writeable = False
         self.update(parts)
 
     def __len__(self) -> int:
@@ -58,7 +59,15 @@ class SurfacePoints:
         return mask
 
     def update(self, parts: list[MeshPart]) -> None:
-        """Recompute world positions and normals of dynamic points from the parts' matrices."""
+        """Recompute world positions and normals of dynamic points from the parts' matrices.
+
+        ``world`` is replaced by a new read-only array (copy on write), so arrays handed out
+        earlier keep describing the frame they were taken at.
+        """
+        if not self.dynamic_parts:
+            self.world.flags.writeable = False
+            return
+        self.world = self.world.copy()
         for i in self.dynamic_parts:
             a, b = self.ranges[i]
             if a == b:
@@ -68,3 +77,4 @@ class SurfacePoints:
             n = self.local_normals[a:b] @ np.linalg.inv(m[:3, :3])  # inverse-transpose
             norm = np.linalg.norm(n, axis=1, keepdims=True)
             self.world_normals[a:b] = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+        self.world.flags.writeable = False

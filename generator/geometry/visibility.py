@@ -5,7 +5,8 @@ A point is visible when all of these hold:
 2. its planar depth z satisfies near < z <= far, with far = min(clip_end, max_depth);
 3. it is not on the back side of a closed part (a solid) whose bounding box does not
    contain the camera: such a point is always hidden by the solid's own front side, so
-   it is settled without a ray;
+   it is settled without a ray (at a silhouette this can hide a point whose ray enters
+   the solid less than ``tol`` before it, which rule 4 alone would let through);
 4. the segment from the camera centre to the point hits no triangle closer than
    ``d - tol`` (see ``raycast.OCCLUSION_TOL_*``), tested against static and dynamic parts.
 """
@@ -16,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import world_to_camera
 from .raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
 
 
@@ -59,16 +59,18 @@ def visible_points(
     """
     points = np.asarray(points)
     n = len(points)
-    centre = world_from_camera[:3, 3]
-    pc = world_to_camera(points, world_from_camera)
-    z = pc[:, 2]
+    r, centre = world_from_camera[:3, :3], world_from_camera[:3, 3]
+    # Camera coordinates axis by axis: three matrix-vector products are ~15x faster than
+    # an (N, 3) x (3, 3) product. The frustum test is done without dividing by z.
+    x = points @ r[:, 0] - centre @ r[:, 0]
+    y = points @ r[:, 1] - centre @ r[:, 1]
+    z = points @ r[:, 2] - centre @ r[:, 2]
     ok = (z > limits.near) & (z <= limits.far)
+    u = K[0, 0] * x + K[0, 1] * y + K[0, 2] * z  # = pixel x * z
+    ok &= (u >= 0) & (u < width * z)
+    v = K[1, 1] * y + K[1, 2] * z  # = pixel y * z
+    ok &= (v >= 0) & (v < height * z)
     idx = np.flatnonzero(ok)
-    zc = z[idx]
-    u = (K[0, 0] * pc[idx, 0] + K[0, 1] * pc[idx, 1]) / zc + K[0, 2]
-    v = K[1, 1] * pc[idx, 1] / zc + K[1, 2]
-    inside = (u >= 0) & (u < width) & (v >= 0) & (v < height)
-    idx = idx[inside]
     in_view = len(idx)
 
     culled = 0
