@@ -288,3 +288,28 @@ def test_bpy_free_packages_do_not_import_bpy():
     env = {k: v for k, v in os.environ.items() if k != "OCIO"}  # set by bpy in this process
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def test_drivers_make_objects_dynamic_only_when_they_drive_the_transform(tmp_path):
+    scenes.new_scene()
+    scenes.add_plane("Ground", (50, 50), (0, 0, 0))
+    slider = scenes.add_box("Slider", (1, 1, 1), (0, 5, 0.5))
+    fc = slider.driver_add("location", 0)
+    fc.driver.type = "SCRIPTED"
+    fc.driver.expression = "frame * 0.25"  # x = 0.25 m per frame
+    for fm in list(fc.modifiers):
+        fc.modifiers.remove(fm)
+    painted = scenes.add_box("Painted", (1, 1, 1), (3, 5, 0.5))
+    painted["weight"] = 0.0
+    fc2 = painted.driver_add('["weight"]')
+    fc2.driver.expression = "frame"  # drives a custom property, not the transform
+    scenes.look_along_y((0, -5, 1))
+    sim = Simulator(scenes.save(tmp_path / "drivers.blend"), points_density=20)
+    assert sim.dynamic_objects == ["Slider"]
+    inst = sim.point_instances
+    s = sim.object_names.index("Slider")
+    p1 = np.array(sim.compute_point_cloud()[0][inst == s])
+    np.testing.assert_allclose(p1[:, 0].mean(), 0.25 * sim.frame, atol=0.05)
+    sim.step_frame()
+    p2 = sim.compute_point_cloud()[0][inst == s]
+    np.testing.assert_allclose(p2, p1 + [0.25, 0, 0], atol=1e-5)
