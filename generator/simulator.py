@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from pathlib import Path
 
 import numpy as np
 
 from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
-from .blender.extract import dynamic_matrices, extract_parts
+from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
+from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.raycast import SceneGeometry
@@ -18,6 +20,7 @@ from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
+from .passes import RenderOutput, label_coverage, semantic_map
 
 
 class SceneError(ValueError):
@@ -52,6 +55,8 @@ class Simulator:
         max_pcl_depth: points deeper than this planar depth (metres) are never visible.
         seed: seeds every random choice (point sampling, spawn points, respawns).
         collision_radius: radius in metres of the camera's collision sphere (>= 0).
+        render_preset: None keeps the .blend's render settings (engine, resolution,
+            samples); 'preview', 'default' or 'high' override them (see configure_render).
     """
 
     def __init__(
@@ -62,6 +67,7 @@ class Simulator:
         max_pcl_depth: float = math.inf,
         seed: int = 0,
         collision_radius: float = 0.3,
+        render_preset: str | None = None,
     ):
         self.points_density = _check_number("points_density", points_density, low=0, low_open=True)
         if not math.isfinite(self.points_density):
@@ -80,9 +86,9 @@ class Simulator:
         bcam.detach_camera(self._camera)
         session.make_viewport_match_render()
 
-        intr = bcam.read_intrinsics(self._camera)
-        self.width, self.height = intr.width, intr.height
-        self.K = intr.K
+        if render_preset is not None:
+            apply_settings(resolve_settings(render_preset))
+        self._refresh_intrinsics()
         self.clip_start, self.clip_end = bcam.clip_range(self._camera)
 
         extracted = extract_parts()
@@ -95,6 +101,9 @@ class Simulator:
         self.object_names: list[str] = [p.name for p in self._parts]
         self._geometry = SceneGeometry(self._parts)
         self._points = SurfacePoints(self._parts, self.label_ids, self.points_density, self.seed)
+        self._pass_table = assign_pass_indices(self._parts, self.label_ids)
+        self._renderer: Renderer | None = None
+        self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self.last_visibility = VisibilityStats()
 
@@ -261,9 +270,62 @@ class Simulator:
         return self.frame
 
     # ---- rendering -----------------------------------------------------------------------
-    def render(self):
-        """RGB, depth and semantic maps: provided by the rendering issue (#3)."""
-        raise NotImplementedError("Simulator.render() is not implemented yet (rendering, issue #3)")
+    def _refresh_intrinsics(self) -> None:
+        intr = bcam.read_intrinsics(self._camera)
+        self.width, self.height, self.K = intr.width, intr.height, intr.K
+
+    def configure_render(self, preset: str | None = None, **overrides) -> RenderSettings:
+        """Set render quality: a preset ('preview', 'default', 'high') and/or explicit
+        ``engine``, ``samples``, ``denoise``, ``denoise_prefilter``, ``bounces``,
+        ``threads``, ``resolution=(width, height)``. Changing the resolution changes
+        ``K``, ``width`` and ``height`` (visibility uses the new image too)."""
+        self._check_current()
+        settings = resolve_settings(preset, **overrides)
+        apply_settings(settings)
+        self._refresh_intrinsics()
+        return settings
+
+    @property
+    def instance_table(self) -> list[dict]:
+        """Rows ``{"id", "object", "label", "label_id"}`` for the ids in ``render().instance``."""
+        return [
+            {"id": i, "object": p.name, "label": p.label, "label_id": self.label_ids[p.label]}
+            for i, p in enumerate(self._parts)
+        ]
+
+    def render(self) -> RenderOutput:
+        """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
+
+        See :class:`generator.passes.RenderOutput` for shapes, units and conventions; the
+        returned object also holds ``instance`` and ``rgb_linear``.
+        """
+        self._check_current()
+        if self._renderer is None:
+            self._renderer = Renderer()
+        raw = self._renderer.render()
+        t0 = time.perf_counter()
+        index = raw.object_index if raw.object_index is not None else self._pass_index_by_rays()
+        coverage = None
+        if raw.crypto_ids is not None:
+            hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
+            coverage = lambda seg: label_coverage(raw, hash_to_label, seg)  # noqa: E731
+        sensitivity = self.segmentation_sensitivity if coverage is not None else 0.0
+        seg, inst = semantic_map(index, self._pass_table.labels, self._pass_table.instances, sensitivity, coverage)
+        self.last_render_timings = dict(self._renderer.last_timings, labels=time.perf_counter() - t0)
+        return RenderOutput(
+            raw.rgb_display, raw.depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
+        )
+
+    def _pass_index_by_rays(self) -> np.ndarray:
+        """Pass index of the surface through each pixel centre, by ray casting our own
+        geometry (for engines without an object-index pass)."""
+        rays = cam_model.pixel_rays(self.K, self.width, self.height).reshape(-1, 3)
+        pose = self._world_from_camera
+        dirs = rays @ pose[:3, :3].T
+        t, part = self._geometry.cast(np.broadcast_to(pose[:3, 3], dirs.shape), dirs)  # t = planar depth
+        hit = (part >= 0) & (t > self.clip_start) & (t <= self.clip_end)
+        out = np.where(hit, self._pass_table.of_part[np.maximum(part, 0)], 0)
+        return out.reshape(self.height, self.width).astype(np.int32)
 
 
 def _look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:

@@ -93,3 +93,15 @@ def walls_scene(path: Path, width: int = 64, height: int = 48) -> Path:
     add_box("Crate.001", (1, 1, 1), (-3, 8, 0.5))
     look_along_y((0, 0, 1.5))
     return save(path)
+
+
+def add_sun(strength: float = 3.0, rotation=(0.6, 0.2, 0.8)):
+    data = bpy.data.lights.new("Sun", "SUN")
+    data.energy = strength
+    sun = bpy.data.objects.new("Sun", data)
+    bpy.context.scene.collection.objects.link(sun)
+    sun.rotation_euler = rotation
+    world = bpy.data.worlds.new("World")
+    world.color = (0.4, 0.5, 0.7)
+    bpy.context.scene.world = world
+    return sun

@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 log() { printf '[bootstrap] %s\n' "$*" >&2; }
 
 # --- Debian packages ---------------------------------------------------------------
-debs=(libusb-1.0-0)
+debs=(libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri)
 missing=()
 for pkg in "${debs[@]}"; do
   dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")

@@ -120,20 +120,20 @@ def extract_parts() -> ExtractedScene:
             c, o = closed_and_orientation(wv, faces)
             spawn = MeshPart(key, label, wv, faces.copy(), closed=c, outward=o)
             continue
-        found.append((key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world))
+        found.append((key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, name))
 
     found.sort(key=lambda f: f[0])
     parts, bindings = [], []
-    for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world in found:
+    for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, source in found:
         if is_dyn:
             offset = np.linalg.inv(parent_world) @ world if parent_world is not None else np.eye(4)
             bindings.append(DynamicBinding(len(parts), driver, offset))
-            parts.append(MeshPart(key, label, verts.copy(), faces, True, world, closed, outward))
+            parts.append(MeshPart(key, label, verts.copy(), faces, True, world, closed, outward, source))
         else:
             wv = verts @ world[:3, :3].T + world[:3, 3]
             if np.linalg.det(world[:3, :3]) < 0:
                 outward = -outward  # a mirroring matrix flips the winding
-            parts.append(MeshPart(key, label, wv, faces, False, np.eye(4), closed, outward))
+            parts.append(MeshPart(key, label, wv, faces, False, np.eye(4), closed, outward, source))
     return ExtractedScene(parts, bindings, spawn)
 
 
@@ -145,3 +145,41 @@ def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
         obj = bpy.data.objects[b.driver].evaluated_get(depsgraph)
         out[b.part] = _matrix(obj.matrix_world) @ b.offset
     return out
+
+
+MAX_PASS_INDEX = 32767  # Blender's Object.pass_index is a short
+
+
+@dataclass
+class PassTable:
+    """Object pass indices: ``labels[k]`` / ``instances[k]`` are the label id and part index
+    of pass index k (entry 0, no object, is -1); ``of_part[i]`` is part i's pass index."""
+
+    labels: np.ndarray
+    instances: np.ndarray
+    of_part: np.ndarray
+
+
+def assign_pass_indices(parts: list[MeshPart], label_ids: dict[str, int]) -> PassTable:
+    """Give every simulated Blender object a unique ``pass_index`` (1, 2, ...; 0 = none).
+
+    Copies of one object made by instancing share its pass index and map to the first of
+    those parts.
+    """
+    first_part: dict[str, int] = {}
+    for i, p in enumerate(parts):
+        first_part.setdefault(p.source, i)
+    if len(first_part) > MAX_PASS_INDEX:
+        raise ValueError(f"{len(first_part)} objects exceed Blender's {MAX_PASS_INDEX} object pass indices")
+    for obj in bpy.data.objects:
+        obj.pass_index = 0
+    labels = np.full(len(first_part) + 1, -1, dtype=np.int32)
+    instances = np.full(len(first_part) + 1, -1, dtype=np.int32)
+    index_of_source = {}
+    for k, (source, i) in enumerate(first_part.items(), start=1):
+        bpy.data.objects[source].pass_index = k
+        labels[k] = label_ids[parts[i].label]
+        instances[k] = i
+        index_of_source[source] = k
+    of_part = np.array([index_of_source[p.source] for p in parts], dtype=np.int32)
+    return PassTable(labels, instances, of_part)

@@ -28,6 +28,7 @@ class MeshPart:
     matrix: np.ndarray = field(default_factory=lambda: np.eye(4))
     closed: bool = False
     outward: int = 1
+    source: str = ""  # name of the Blender object the triangles come from
 
     def world_vertices(self) -> np.ndarray:
         m = self.matrix

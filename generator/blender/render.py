@@ -1,0 +1,200 @@
+"""Rendering with Blender: settings and presets, the passes we need, private temporary files.
+
+One call to :meth:`Renderer.render` runs one Blender render that writes
+- a multilayer EXR (float32, uncompressed) with linear RGB, planar depth, the object index
+  and Cryptomatte object coverage, and
+- through the compositor, a 16-bit TIFF of the display-referred RGB (Blender's own view
+  transform applied),
+into a private temporary folder (on /dev/shm when it exists) that is emptied after every
+render, failed or not, and removed when the renderer is garbage-collected or at exit.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import tempfile
+import time
+import weakref
+from dataclasses import dataclass, fields, replace
+
+import bpy
+
+from ..passes import RawPasses, read_blender_exr, read_display_tiff
+from . import session
+from .egl import require_gpu_context
+
+ENGINES = ("CYCLES", "BLENDER_EEVEE", "BLENDER_WORKBENCH")
+CRYPTOMATTE_LEVELS = 4  # objects ranked per pixel (two EXR layers)
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Render quality settings; None leaves the .blend's own value untouched.
+
+    samples: Cycles samples per pixel (EEVEE: TAA samples); bounces: Cycles max bounces;
+    denoise: OpenImageDenoise on the final image; denoise_prefilter: 'NONE', 'FAST' or
+    'ACCURATE'; threads: CPU threads (0 = all cores); resolution: (width, height) pixels.
+    """
+
+    engine: str | None = None
+    samples: int | None = None
+    denoise: bool | None = None
+    denoise_prefilter: str | None = None
+    bounces: int | None = None
+    threads: int | None = None
+    resolution: tuple[int, int] | None = None
+    persistent_data: bool | None = None
+
+    def merged(self, other: "RenderSettings") -> "RenderSettings":
+        """These settings with every non-None field of ``other`` applied on top."""
+        return replace(self, **{f.name: getattr(other, f.name) for f in fields(other) if getattr(other, f.name) is not None})
+
+
+PRESETS: dict[str, RenderSettings] = {
+    # fast look: few samples, quick denoise, short light paths
+    "preview": RenderSettings("CYCLES", samples=4, denoise=True, denoise_prefilter="FAST", bounces=2, threads=0, persistent_data=True),
+    # the batch job's default: clean enough for training, ~11 s at 640x480 on 2 cores
+    "default": RenderSettings("CYCLES", samples=16, denoise=True, denoise_prefilter="FAST", bounces=4, threads=0, persistent_data=True),
+    # paper-quality stills
+    "high": RenderSettings("CYCLES", samples=128, denoise=True, denoise_prefilter="ACCURATE", bounces=12, threads=0, persistent_data=True),
+}
+
+
+def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
+    """Validated settings from a preset name (or None: keep the .blend's) and overrides."""
+    if preset is not None and preset not in PRESETS:
+        raise ValueError(f"unknown render preset {preset!r}; choose one of {', '.join(PRESETS)}")
+    base = PRESETS[preset] if preset else RenderSettings()
+    unknown = set(overrides) - {f.name for f in fields(RenderSettings)}
+    if unknown:
+        raise TypeError(f"unknown render setting(s): {', '.join(sorted(unknown))}")
+    s = base.merged(RenderSettings(**overrides))
+    if s.engine is not None and s.engine not in ENGINES:
+        raise ValueError(f"unknown render engine {s.engine!r}; choose one of {', '.join(ENGINES)}")
+    if s.samples is not None and (not isinstance(s.samples, int) or isinstance(s.samples, bool) or s.samples < 1):
+        raise ValueError(f"samples must be an integer >= 1, got {s.samples!r}")
+    if s.bounces is not None and (not isinstance(s.bounces, int) or s.bounces < 0):
+        raise ValueError(f"bounces must be an integer >= 0, got {s.bounces!r}")
+    if s.threads is not None and (not isinstance(s.threads, int) or s.threads < 0):
+        raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {s.threads!r}")
+    if s.denoise_prefilter is not None and s.denoise_prefilter not in ("NONE", "FAST", "ACCURATE"):
+        raise ValueError(f"denoise_prefilter must be NONE, FAST or ACCURATE, got {s.denoise_prefilter!r}")
+    if s.resolution is not None:
+        try:
+            w, h = (int(v) for v in s.resolution)
+        except (TypeError, ValueError):
+            raise ValueError(f"resolution must be (width, height), got {s.resolution!r}") from None
+        if w <= 0 or h <= 0 or (w, h) != tuple(s.resolution):
+            raise ValueError(f"resolution must be two positive integers, got {s.resolution!r}")
+    return s
+
+
+def apply_settings(settings: RenderSettings) -> None:
+    """Write settings into the open scene (None fields are left as the .blend has them)."""
+    with session.quiet():  # touching Cycles' device settings makes it log its device probe
+        _apply_settings(settings)
+
+
+def _apply_settings(settings: RenderSettings) -> None:
+    scene = bpy.context.scene
+    r = scene.render
+    if settings.engine is not None:
+        r.engine = settings.engine
+    if settings.resolution is not None:
+        r.resolution_x, r.resolution_y = settings.resolution
+        r.resolution_percentage = 100
+    if settings.threads is not None:
+        r.threads_mode = "FIXED" if settings.threads else "AUTO"
+        if settings.threads:
+            r.threads = settings.threads
+    if settings.persistent_data is not None:
+        r.use_persistent_data = settings.persistent_data
+    c = scene.cycles
+    c.device = "CPU"
+    if settings.samples is not None:
+        c.samples = settings.samples
+        scene.eevee.taa_render_samples = settings.samples
+    if settings.denoise is not None:
+        c.use_denoising = settings.denoise
+        c.denoiser = "OPENIMAGEDENOISE"
+    if settings.denoise_prefilter is not None:
+        c.denoising_prefilter = settings.denoise_prefilter
+    if settings.bounces is not None:
+        c.max_bounces = settings.bounces
+        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
+            setattr(c, name, min(getattr(c, name), settings.bounces))
+
+
+class Renderer:
+    """Renders the open scene into :class:`RawPasses`, one Blender render per call."""
+
+    def __init__(self):
+        base = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+        self.tmpdir = tempfile.mkdtemp(prefix=f"buildee-render-{os.getpid()}-", dir=base)
+        self._finalizer = weakref.finalize(self, shutil.rmtree, self.tmpdir, True)
+        self.last_timings: dict[str, float] = {}  # seconds, for benchmarks (never written out)
+        with session.quiet():
+            self._configure_outputs()
+
+    def close(self) -> None:
+        self._finalizer()
+
+    def _configure_outputs(self) -> None:
+        scene = bpy.context.scene
+        r = scene.render
+        r.compositor_device = "CPU"
+        r.use_compositing = True
+        r.use_sequencer = False
+        r.dither_intensity = 0.0  # no dither noise in the display-referred RGB we return
+        fmt = r.image_settings
+        fmt.media_type = "MULTI_LAYER_IMAGE"
+        fmt.file_format = "OPEN_EXR_MULTILAYER"
+        fmt.color_depth = "32"
+        fmt.exr_codec = "NONE"
+        r.filepath = os.path.join(self.tmpdir, "passes.exr")
+        r.use_file_extension = True
+        for vl in scene.view_layers:
+            vl.use_pass_z = True
+            vl.use_pass_object_index = True
+            vl.use_pass_cryptomatte_object = True
+            vl.pass_cryptomatte_depth = CRYPTOMATTE_LEVELS
+            vl.cycles.denoising_store_passes = False
+        tree = bpy.data.node_groups.new("buildee-outputs", "CompositorNodeTree")
+        scene.compositing_node_group = tree
+        layers = tree.nodes.new("CompositorNodeRLayers")
+        out = tree.nodes.new("CompositorNodeOutputFile")
+        out.directory = self.tmpdir + os.sep
+        out.file_name = "display"
+        out.format.media_type = "IMAGE"
+        out.format.file_format = "TIFF"
+        out.format.color_depth = "16"
+        out.format.color_mode = "RGB"
+        out.format.tiff_codec = "NONE"
+        out.save_as_render = True  # Blender's view transform, as in its own PNG output
+        out.file_output_items.new("RGBA", "Image")
+        tree.links.new(layers.outputs["Image"], out.inputs[0])
+
+    def render(self) -> RawPasses:
+        """One Blender render; returns its passes. Temporary files never outlive the call."""
+        require_gpu_context(bpy.context.scene.render.engine)
+        try:
+            t0 = time.perf_counter()
+            with session.quiet():
+                bpy.ops.render.render(write_still=True)
+            t1 = time.perf_counter()
+            exr = glob.glob(os.path.join(self.tmpdir, "passes*.exr"))
+            tif = glob.glob(os.path.join(self.tmpdir, "display*.tif*"))
+            if not exr or not tif:
+                raise RuntimeError(f"Blender wrote no render output (see its log: {session.log_path()})")
+            raw = read_blender_exr(exr[0])
+            raw.rgb_display = read_display_tiff(tif[0])
+            self.last_timings = {"blender_render_and_write": t1 - t0, "read_passes": time.perf_counter() - t1}
+            return raw
+        finally:
+            for name in os.listdir(self.tmpdir):
+                try:
+                    os.remove(os.path.join(self.tmpdir, name))
+                except OSError:
+                    pass

@@ -1,0 +1,154 @@
+"""Decode Blender's render passes into the simulator's outputs (bpy-free).
+
+Blender writes one multilayer EXR per render (linear RGB, planar depth, object index and
+Cryptomatte object coverage) and, through the compositor, a 16-bit TIFF of the
+display-referred RGB. This module reads both and turns them into ``rgb``, ``depth``,
+``seg`` and ``instance`` arrays.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+BLENDER_NO_SURFACE = 1e10  # what Blender writes in the Depth pass where there is no surface
+LABEL_COVERAGE_EPS = 1e-6
+
+
+@dataclass
+class RawPasses:
+    """Arrays read back from one Blender render (H, W first)."""
+
+    rgb_linear: np.ndarray  # (H, W, 3) float32, scene-referred
+    alpha: np.ndarray  # (H, W) float32
+    depth: np.ndarray  # (H, W) float32, planar z in metres, inf where no surface
+    object_index: np.ndarray | None  # (H, W) int32 pass index at the pixel centre, 0 = none
+    crypto_ids: np.ndarray | None  # (R, H, W) uint32 Cryptomatte hashes, best rank first
+    crypto_coverage: np.ndarray | None  # (R, H, W) float32 coverage of each rank
+    crypto_manifest: dict[str, int] = field(default_factory=dict)  # object name -> hash
+    rgb_display: np.ndarray | None = None  # (H, W, 3) float32 in [0, 1], view transform applied
+
+
+@dataclass
+class RenderOutput:
+    """What ``Simulator.render()`` returns; unpacks as ``rgb, depth, seg = sim.render()``.
+
+    rgb: (H, W, 3) float32 display-referred (view transform applied), in [0, 1].
+    depth: (H, W) float32 planar depth in metres, +inf where no surface.
+    seg: (H, W) int32 label ids (index into ``Simulator.labels``), -1 = unlabelled.
+    instance: (H, W) int32 object ids (index into ``Simulator.object_names``), -1 = none.
+    rgb_linear: (H, W, 3) float32 scene-referred linear RGB (HDR).
+    K, world_from_camera, frame: the camera and time the image was rendered with.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    seg: np.ndarray
+    instance: np.ndarray
+    rgb_linear: np.ndarray
+    K: np.ndarray
+    world_from_camera: np.ndarray
+    frame: int
+
+    def __iter__(self):
+        return iter((self.rgb, self.depth, self.seg))
+
+
+def read_blender_exr(path: str | Path) -> RawPasses:
+    """Read the multilayer EXR that Blender wrote for a render (all parts)."""
+    import OpenEXR
+
+    channels: dict[str, np.ndarray] = {}
+    manifest: dict[str, int] = {}
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        for part in f.parts:
+            for name, ch in part.channels.items():
+                channels[name] = ch.pixels
+            for key, value in part.header.items():
+                if key.startswith("cryptomatte/") and key.endswith("/name") and "object" in str(value).lower():
+                    prefix = key[: -len("name")]
+                    raw = part.header.get(prefix + "manifest", "{}")
+                    manifest.update({n: int(h, 16) for n, h in json.loads(raw).items()})
+
+    def find(suffix: str):
+        hits = [k for k in channels if k.endswith(suffix)]
+        return channels[hits[0]] if hits else None
+
+    rgb = np.stack([find(".Combined.R"), find(".Combined.G"), find(".Combined.B")], axis=-1).astype(np.float32)
+    alpha = find(".Combined.A")
+    depth = find(".Depth.Z").astype(np.float32)
+    depth = np.where(depth >= BLENDER_NO_SURFACE * 0.999, np.float32(np.inf), depth)
+    index = find(".IndexOB.X")
+    if index is None:
+        index = find(".Object Index.X")
+    crypto_layers = sorted(
+        {m.group(1) for k in channels if (m := re.search(r"(CryptoObject\d\d)\.[rgba]$", k))}
+    )
+    ids, cov = [], []
+    for layer in crypto_layers:
+        r, g, b, a = (find(f"{layer}.{c}") for c in "rgba")
+        ids += [np.ascontiguousarray(r, dtype=np.float32).view(np.uint32), np.ascontiguousarray(b, dtype=np.float32).view(np.uint32)]
+        cov += [g.astype(np.float32), a.astype(np.float32)]
+    return RawPasses(
+        rgb_linear=rgb,
+        alpha=alpha.astype(np.float32) if alpha is not None else np.ones(depth.shape, np.float32),
+        depth=depth,
+        object_index=np.rint(index).astype(np.int32) if index is not None else None,
+        crypto_ids=np.stack(ids) if ids else None,
+        crypto_coverage=np.stack(cov) if cov else None,
+        crypto_manifest=manifest,
+    )
+
+
+def read_display_tiff(path: str | Path) -> np.ndarray:
+    """Display-referred RGB (H, W, 3) float32 in [0, 1] from Blender's 16-bit TIFF."""
+    import tifffile
+
+    data = tifffile.imread(str(path))
+    if data.dtype != np.uint16:
+        raise ValueError(f"expected a 16-bit TIFF from Blender, got {data.dtype}")
+    return (data[..., :3].astype(np.float32) / np.float32(65535.0)).astype(np.float32)
+
+
+def label_coverage(raw: RawPasses, hash_to_label: dict[int, int], seg: np.ndarray) -> np.ndarray:
+    """Share (H, W) of each pixel's antialiased footprint covered by objects carrying the
+    label ``seg`` holds at that pixel (from the Cryptomatte object ranks)."""
+    if raw.crypto_ids is None:
+        raise ValueError("this render has no Cryptomatte object pass; segmentation_sensitivity needs it")
+    keys = np.fromiter(hash_to_label.keys(), dtype=np.uint32, count=len(hash_to_label))
+    vals = np.fromiter(hash_to_label.values(), dtype=np.int32, count=len(hash_to_label))
+    order = np.argsort(keys)
+    keys, vals = keys[order], vals[order]
+    total = np.zeros(seg.shape, dtype=np.float32)
+    for ids, cov in zip(raw.crypto_ids, raw.crypto_coverage):
+        pos = np.clip(np.searchsorted(keys, ids), 0, max(len(keys) - 1, 0))
+        label = np.where((len(keys) > 0) & (keys[pos] == ids), vals[pos], -2) if len(keys) else np.full(ids.shape, -2)
+        total += np.where(label == seg, cov, 0.0).astype(np.float32)
+    return total
+
+
+def semantic_map(
+    object_index: np.ndarray,
+    label_of_pass_index: np.ndarray,
+    instance_of_pass_index: np.ndarray,
+    sensitivity: float,
+    coverage_fn=None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Labels and instances (H, W) int32 from the pixel-centre object index.
+
+    ``label_of_pass_index[k]`` / ``instance_of_pass_index[k]`` give the label and instance of
+    pass index k (index 0 = no object = -1). With ``sensitivity`` > 0, labels whose share of
+    the pixel (``coverage_fn(seg)``) is below it become -1; instances are kept.
+    """
+    idx = np.clip(object_index, 0, len(label_of_pass_index) - 1)
+    known = (object_index >= 0) & (object_index < len(label_of_pass_index))
+    seg = np.where(known, label_of_pass_index[idx], -1).astype(np.int32)
+    inst = np.where(known, instance_of_pass_index[idx], -1).astype(np.int32)
+    if sensitivity > 0:
+        cov = coverage_fn(seg)
+        seg = np.where(cov + LABEL_COVERAGE_EPS >= sensitivity, seg, -1).astype(np.int32)
+    return seg, inst
