@@ -96,7 +96,7 @@ class Simulator:
             raise SceneError(f"{self.blend_file} has no render-visible mesh objects with faces")
         self._parts = extracted.parts
         self._bindings = extracted.bindings
-        self.labels: list[str] = sorted({p.label for p in self._parts})
+        self.labels: list[str] = _label_table({p.label for p in self._parts})
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
         self._geometry = SceneGeometry(self._parts)
@@ -326,6 +326,17 @@ class Simulator:
         hit = (part >= 0) & (t > self.clip_start) & (t <= self.clip_end)
         out = np.where(hit, self._pass_table.of_part[np.maximum(part, 0)], 0)
         return out.reshape(self.height, self.width).astype(np.int32)
+
+
+def _label_table(present: set[str]) -> list[str]:
+    """Label names indexed by id: the scene's stored table (``buildee_labels``, e.g. the
+    generator's taxonomy) followed by any other labels in sorted order; without a stored
+    table, the sorted labels present."""
+    import json
+
+    stored = session.bpy.context.scene.get("buildee_labels")
+    table = list(json.loads(stored)) if isinstance(stored, str) else []
+    return table + sorted(present - set(table))
 
 
 def _look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:

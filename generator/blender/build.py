@@ -1,0 +1,187 @@
+"""Turn a :class:`generator.scene.site.SitePlan` into a Blender scene and save it."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import bpy
+import numpy as np
+from bpy_extras import anim_utils
+
+from ..scene.assets import Asset, Part
+from ..scene.meshes import MeshData
+from ..scene.site import SitePlan, fence_part, ground_part
+from ..scene.taxonomy import CLASSES
+from . import session
+from .materials import make_material
+from .render import apply_settings, resolve_settings
+
+LABEL_TABLE_PROPERTY = "buildee_labels"
+SITE_PROPERTY = "buildee_site"
+
+
+def mesh_from_data(name: str, data: MeshData, seed: int):
+    """A Blender mesh from quads and triangles (fast path through foreach_set)."""
+    me = bpy.data.meshes.new(name)
+    nq, nt = len(data.quads), len(data.tris)
+    me.vertices.add(len(data.vertices))
+    me.vertices.foreach_set("co", data.vertices.astype(np.float32).ravel())
+    loops = np.concatenate([data.quads.ravel(), data.tris.ravel()]).astype(np.int32)
+    me.loops.add(len(loops))
+    me.loops.foreach_set("vertex_index", loops)
+    me.polygons.add(nq + nt)
+    me.polygons.foreach_set("loop_start", np.concatenate([np.arange(nq) * 4, nq * 4 + np.arange(nt) * 3]).astype(np.int32))
+    me.polygons.foreach_set("material_index", data.face_material.astype(np.int32))
+    me.update(calc_edges=True)
+    for key in data.materials:
+        me.materials.append(make_material(key, seed))
+    return me
+
+
+def _make_linear(obj) -> None:
+    ad = obj.animation_data
+    if ad is None or ad.action is None:
+        return
+    bag = anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot)
+    for fc in bag.fcurves:
+        for kp in fc.keyframe_points:
+            kp.interpolation = "LINEAR"
+
+
+def _collection(name: str):
+    coll = bpy.data.collections.get(name)
+    if coll is None:
+        coll = bpy.data.collections.new(name)
+        bpy.context.scene.collection.children.link(coll)
+    return coll
+
+
+def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: int = -1) -> list:
+    """Create the asset's objects; root parts are placed at ``position`` / ``yaw``."""
+    objects = []
+    c, s = math.cos(yaw), math.sin(yaw)
+    px, py = position
+    for part in asset.parts:
+        name = part.label or f"{asset.kind}Pivot"
+        data = mesh_from_data(name, part.mesh, seed) if part.mesh is not None else None
+        obj = bpy.data.objects.new(name, data)
+        collection.objects.link(obj)
+        obj.rotation_mode = "XYZ"
+        root = part.parent is None
+
+        def place(loc, rot):
+            if not root:
+                return loc, rot
+            if abs(rot[0]) > 1e-12 or abs(rot[1]) > 1e-12:
+                raise ValueError(f"root part of {asset.kind} must only turn about z")
+            return (c * loc[0] - s * loc[1] + px, s * loc[0] + c * loc[1] + py, loc[2]), (0.0, 0.0, rot[2] + yaw)
+
+        loc, rot = place(part.location, part.rotation)
+        if part.parent is not None:
+            obj.parent = objects[part.parent]
+        if part.keys is not None:
+            k = part.keys
+            for i, frame in enumerate(k.frames):
+                kl = k.location[i] if k.location is not None else part.location
+                kr = k.rotation[i] if k.rotation is not None else part.rotation
+                obj.location, obj.rotation_euler = place(tuple(kl), tuple(kr))
+                if k.location is not None:
+                    obj.keyframe_insert("location", frame=float(frame))
+                if k.rotation is not None:
+                    obj.keyframe_insert("rotation_euler", frame=float(frame))
+            _make_linear(obj)
+            if k.location is None:  # channels without keys keep the rest transform
+                obj.location = loc
+            if k.rotation is None:
+                obj.rotation_euler = rot
+        else:
+            obj.location, obj.rotation_euler = loc, rot
+        if data is None:
+            obj.empty_display_size = 1.0
+        obj["buildee_group"] = asset.kind
+        obj["buildee_asset"] = index  # which placed asset the object belongs to (-1: ground, fence)
+        objects.append(obj)
+    return objects
+
+
+def _sun_and_sky(seed: int) -> dict:
+    from ..geometry.seeding import stream
+
+    rng = stream(seed, "lighting")
+    elevation = float(rng.uniform(np.radians(20), np.radians(70)))
+    azimuth = float(rng.uniform(0, 2 * np.pi))
+    sun_data = bpy.data.lights.new("Sun", "SUN")
+    sun_data.energy = float(rng.uniform(2.5, 4.5))
+    sun_data.angle = float(np.radians(rng.uniform(0.5, 3.0)))
+    sun = bpy.data.objects.new("Sun", sun_data)
+    bpy.context.scene.collection.objects.link(sun)
+    # a sun light shines along its -Z: point -Z from the sun towards the ground
+    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, azimuth + math.pi / 2)
+    world = bpy.data.worlds.new("Sky")
+    bpy.context.scene.world = world
+    world.use_nodes = True
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    sky = nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "HOSEK_WILKIE"
+    sky.turbidity = float(rng.uniform(2.0, 5.0))
+    sky.ground_albedo = float(rng.uniform(0.2, 0.4))
+    sky.sun_direction = (math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation))
+    bg = nodes.get("Background") or nodes.new("ShaderNodeBackground")
+    bg.inputs["Strength"].default_value = float(rng.uniform(3.0, 5.0))
+    links.new(sky.outputs["Color"], bg.inputs["Color"])
+    return {"sun_elevation_deg": math.degrees(elevation), "sun_azimuth_deg": math.degrees(azimuth)}
+
+
+def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -> dict:
+    """Replace the open file with the planned site; returns counts per class."""
+    session.new_empty_file()
+    scene = bpy.context.scene
+    p = plan.params
+    scene.frame_start, scene.frame_end = 1, p.frames
+    scene.render.fps = int(round(p.fps))
+    scene.render.fps_base = scene.render.fps / p.fps
+    scene.unit_settings.system = "METRIC"
+    seed = plan.seed
+    with session.quiet():
+        add_asset(Asset("Ground", [ground_part(p.size)], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"))
+        fences = [fence_part(a, b) for a, b in plan.fence_runs]
+        add_asset(Asset("Fence", fences, (0.0, 0.0)), (0.0, 0.0), 0.0, seed, _collection("Fence"))
+        for index, placed in enumerate(plan.placed):
+            add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index)
+        lighting = _sun_and_sky(seed)
+        lo, hi = plan.spawn_box
+        spawn = bpy.data.objects.new("CameraSpawn", mesh_from_data("CameraSpawn", _box_data(lo, hi), seed))
+        scene.collection.objects.link(spawn)
+        spawn.hide_render = True
+        spawn.display_type = "WIRE"
+        cam_data = bpy.data.cameras.new("Camera")
+        cam_data.lens, cam_data.sensor_width, cam_data.clip_start, cam_data.clip_end = 20.0, 36.0, 0.1, 2000.0
+        cam = bpy.data.objects.new("Camera", cam_data)
+        scene.collection.objects.link(cam)
+        eye, target = (np.array(v, dtype=float) for v in plan.camera)
+        d = target - eye
+        cam.rotation_euler = (math.atan2(math.hypot(d[0], d[1]), -d[2]), 0.0, math.atan2(d[1], d[0]) - math.pi / 2)
+        cam.location = tuple(eye)
+        scene.camera = cam
+        apply_settings(resolve_settings("default", resolution=resolution))
+        scene.frame_set(1)
+    scene[LABEL_TABLE_PROPERTY] = json.dumps(list(CLASSES))
+    summary = plan.summary() | {"lighting": lighting}
+    scene[SITE_PROPERTY] = json.dumps(summary, default=float)
+    counts: dict[str, int] = {}
+    triangles = 0
+    for obj in bpy.data.objects:
+        if obj.type == "MESH" and obj.name != "CameraSpawn":
+            label = obj.name.split(".")[0]
+            counts[label] = counts.get(label, 0) + 1
+            obj.data.calc_loop_triangles()
+            triangles += len(obj.data.loop_triangles)
+    return {"objects_per_class": dict(sorted(counts.items())), "triangles": triangles, "objects": sum(counts.values())}
+
+
+def _box_data(lo, hi) -> MeshData:
+    from ..scene.meshes import MeshBuilder
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return MeshBuilder().box(hi - lo, (lo + hi) / 2).build()

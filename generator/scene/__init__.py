@@ -1,0 +1,64 @@
+"""Procedural construction sites (the paper's section 4.1), deterministic by seed.
+
+``build_site(seed, preset="medium", out_dir=...)`` plans a site (bpy-free, see
+:mod:`.site`), builds it in Blender, and writes ``site.blend`` (zstd-compressed, loads in
+``Simulator``), ``preview.png`` (a render), ``map.png`` (top-down layout) and
+``site.json`` (parameters and counts). See docs/scenes.md.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from .site import LAYOUTS, PRESETS, SiteParams, SitePlan, plan_site, site_params  # noqa: F401
+from .taxonomy import CLASS_ID, CLASSES  # noqa: F401
+
+
+@dataclass
+class SiteResult:
+    blend: Path
+    preview: Path | None
+    map: Path
+    info: dict
+
+
+def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", preview: bool = True,
+               resolution: tuple[int, int] = (640, 480), **overrides) -> SiteResult:
+    """Build and save the site of ``seed``. ``overrides`` are :class:`SiteParams` fields
+    (size, density, layout, phase, frames, fps, ...). Imports bpy."""
+    from ..blender import session
+    from ..blender.build import build_in_blender
+    from ..geometry.seeding import stream  # noqa: F401  (validates the seed below)
+    from .site_map import draw_map
+
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    params = site_params(preset, **overrides)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plan = plan_site(seed, params)
+    counts = build_in_blender(plan, resolution)
+    blend = out / "site.blend"
+    session.save_blend(blend)
+    info = plan.summary() | counts | {"preset": preset}
+    (out / "site.json").write_text(json.dumps(info, indent=1, default=float))
+    map_path = draw_map(plan, out / "map.png")
+    preview_path = None
+    if preview:
+        from .. import Simulator
+
+        sim = Simulator(blend, points_density=0.01, seed=seed, render_preset="preview")
+        sim.configure_render(resolution=(480, 320))
+        rgb = sim.render().rgb
+        from PIL import Image
+        import numpy as np
+
+        preview_path = out / "preview.png"
+        Image.fromarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)).save(preview_path)
+        session.open_blend(blend)  # leave Blender with the saved file, untouched by the preview
+    return SiteResult(blend, preview_path, map_path, info)
+
+
+__all__ = ["build_site", "site_params", "plan_site", "SiteParams", "SitePlan", "PRESETS", "LAYOUTS", "CLASSES", "CLASS_ID", "SiteResult", "asdict"]

@@ -1,0 +1,354 @@
+"""Plan a construction site from a seed and parameters (bpy-free, deterministic).
+
+The plan places every asset on a square site: a fence along the boundary with a gate, a
+road loop that the trucks drive, buildings with a tower crane each in the middle, an
+excavator, and props (containers, cabins, material stacks and piles, safety equipment,
+people) arranged in a grid, scattered or clustered. Footprints never overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from ..geometry.seeding import stream
+from . import props, structures, vehicles
+from .assets import Asset, Footprint, Part, overlaps
+from .meshes import MeshBuilder
+
+LAYOUTS = ("grid", "scattered", "clustered")
+
+
+@dataclass(frozen=True)
+class SiteParams:
+    """Parameters of a site. Lengths in metres, time in frames at ``fps``.
+
+    size: side of the square site; density: multiplier of the number of props (1 = typical);
+    layout: 'grid', 'scattered' or 'clustered' arrangement of props; phase: share of the
+    planned floors built, in [0, 1] (None: drawn per building in [0.25, 1]); frames and fps:
+    animation length and rate.
+    """
+
+    size: float = 100.0
+    density: float = 1.0
+    layout: str = "scattered"
+    phase: float | None = None
+    buildings: tuple[int, int] = (1, 2)
+    floors: tuple[int, int] = (4, 8)
+    trucks: tuple[int, int] = (2, 3)
+    excavators: tuple[int, int] = (1, 1)
+    road_inset: float = 11.0
+    frames: int = 250
+    fps: float = 10.0
+
+    def validated(self) -> "SiteParams":
+        if not (isinstance(self.size, (int, float)) and math.isfinite(self.size) and 30 <= self.size <= 1000):
+            raise ValueError(f"site size must be a number of metres in [30, 1000], got {self.size!r}")
+        if not (isinstance(self.density, (int, float)) and math.isfinite(self.density) and 0 <= self.density <= 5):
+            raise ValueError(f"object density must be in [0, 5], got {self.density!r}")
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"unknown layout {self.layout!r}; choose one of {', '.join(LAYOUTS)}")
+        if self.phase is not None and not (0 <= self.phase <= 1):
+            raise ValueError(f"construction phase must be in [0, 1], got {self.phase!r}")
+        if not (isinstance(self.frames, int) and self.frames >= 2):
+            raise ValueError(f"animation length must be an integer >= 2 frames, got {self.frames!r}")
+        if not (self.fps > 0):
+            raise ValueError(f"fps must be positive, got {self.fps!r}")
+        return self
+
+
+PRESETS: dict[str, SiteParams] = {
+    "small": SiteParams(size=50.0, density=1.0, buildings=(1, 1), floors=(3, 5), trucks=(1, 1), excavators=(0, 1), road_inset=6.5),
+    "medium": SiteParams(size=100.0, density=1.0, buildings=(2, 2), floors=(4, 8), trucks=(2, 3), excavators=(1, 1), road_inset=11.0),
+    "large": SiteParams(size=200.0, density=1.0, buildings=(3, 4), floors=(5, 12), trucks=(3, 5), excavators=(1, 2), road_inset=12.0),
+}
+
+
+def site_params(preset: str = "medium", **overrides) -> SiteParams:
+    """Parameters of a preset ('small', 'medium', 'large') with overrides, validated."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown scene preset {preset!r}; choose one of {', '.join(PRESETS)}")
+    unknown = set(overrides) - set(SiteParams.__dataclass_fields__)
+    if unknown:
+        raise TypeError(f"unknown site parameter(s): {', '.join(sorted(unknown))}")
+    return replace(PRESETS[preset], **overrides).validated()
+
+
+@dataclass
+class PlacedAsset:
+    asset: Asset
+    position: tuple[float, float]  # asset origin on the ground, metres
+    yaw: float  # radians
+    footprint: Footprint  # the ground area it keeps for itself (world)
+
+
+@dataclass
+class SitePlan:
+    seed: int
+    params: SiteParams
+    placed: list[PlacedAsset] = field(default_factory=list)
+    road: np.ndarray | None = None  # (K, 2) closed polyline of the road centre line
+    road_width: float = 7.0
+    fence_runs: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)  # (start, end) on the ground
+    hook_height: float = 0.0
+    spawn_box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    camera: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None  # position, look-at
+    skipped: dict[str, int] = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        kinds: dict[str, int] = {}
+        for p in self.placed:
+            kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
+        return {"seed": self.seed, "params": asdict(self.params), "assets": kinds, "skipped": self.skipped,
+                "hook_height_m": self.hook_height}
+
+
+def _local_bounds(asset: Asset) -> tuple[np.ndarray, np.ndarray]:
+    """xy bounds (min, max) of an asset's geometry in its own frame, at its rest pose."""
+    half = np.asarray(asset.size) / 2
+    if not asset.footprint_from_geometry:
+        return -half, half
+    mats = []
+    for part in asset.parts:
+        m = np.eye(4)
+        rx, ry, rz = part.rotation
+        cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+        r = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]]) @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        m[:3, :3], m[:3, 3] = r, part.location
+        if part.parent is not None:
+            m = mats[part.parent] @ m
+        mats.append(m)
+    pts = [p.mesh.vertices @ mats[i][:3, :3].T + mats[i][:3, 3] for i, p in enumerate(asset.parts) if p.mesh is not None and len(p.mesh.vertices)]
+    allp = np.concatenate(pts)[:, :2]
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    # assets whose moving parts sweep more than their rest pose (excavators) declare a size
+    return np.minimum(lo, -half), np.maximum(hi, half)
+
+
+def _footprint(asset: Asset, position, yaw: float) -> Footprint:
+    lo, hi = _local_bounds(asset)
+    c_local = (lo + hi) / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    center = np.asarray(position) + np.array([c * c_local[0] - s * c_local[1], s * c_local[0] + c * c_local[1]])
+    return Footprint((float(center[0]), float(center[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1])), yaw)
+
+
+class _Placer:
+    """Rejection sampling of non-overlapping footprints inside an area."""
+
+    def __init__(self, half: float, reserved: list[Footprint], margin: float = 0.8):
+        self.half = half
+        self.taken: list[Footprint] = list(reserved)
+        self.margin = margin
+
+    def fits(self, fp: Footprint) -> bool:
+        corners = fp.corners()
+        if np.any(np.abs(corners) > self.half):
+            return False
+        grown = fp.grown(self.margin)
+        return not any(overlaps(grown, other) for other in self.taken)
+
+    def try_place(self, asset: Asset, candidates) -> PlacedAsset | None:
+        for (x, y), yaw in candidates:
+            fp = _footprint(asset, (x, y), yaw)
+            if self.fits(fp):
+                self.taken.append(fp)
+                return PlacedAsset(asset, (float(x), float(y)), float(yaw), fp)
+        return None
+
+
+def _road_loop(half_inner: float, radius: float) -> np.ndarray:
+    """Rounded square of half-side ``half_inner`` (centre line), corners sampled every 10°."""
+    pts = []
+    r = min(radius, half_inner * 0.5)
+    for cx, cy, a0 in ((half_inner - r, -half_inner + r, -90), (half_inner - r, half_inner - r, 0),
+                       (-half_inner + r, half_inner - r, 90), (-half_inner + r, -half_inner + r, 180)):
+        for a in np.radians(np.arange(a0, a0 + 90.001, 10)):
+            pts.append((cx + r * math.cos(a), cy + r * math.sin(a)))
+    return np.array(pts)
+
+
+def _candidates(rng: np.random.Generator, layout: str, lo: float, hi: float, n: int, centres=None, grid_step=8.0):
+    """Candidate ((x, y), yaw) positions in the square [lo, hi]^2 following a layout pattern."""
+    if layout == "grid":
+        g = np.arange(lo + grid_step / 2, hi, grid_step)
+        cells = np.array([(x, y) for x in g for y in g])
+        order = rng.permutation(len(cells))[:n]
+        for k in order:
+            yield tuple(cells[k]), float(rng.choice([0.0, math.pi / 2]))
+    elif layout == "clustered" and centres is not None and len(centres):
+        for _ in range(n):
+            c = centres[int(rng.integers(len(centres)))]
+            xy = np.clip(c + rng.normal(0, (hi - lo) * 0.08, 2), lo, hi)
+            yield tuple(xy), float(rng.uniform(0, math.pi))
+    else:
+        for _ in range(n):
+            yield tuple(rng.uniform(lo, hi, 2)), float(rng.uniform(0, math.pi))
+
+
+PROP_KINDS = (  # (builder, relative frequency, prefers the outer band along the fence)
+    ("Container", props.container_stack, 3, True),
+    ("Cabin", props.cabin_block, 2, True),
+    ("SandPile", lambda r: props.material_pile(r, "SandPile"), 1.5, False),
+    ("GravelPile", lambda r: props.material_pile(r, "GravelPile"), 1.5, False),
+    ("BrickPallet", props.brick_pallets, 2.5, False),
+    ("PipeStack", props.pipe_stack, 1.5, False),
+    ("TimberStack", props.timber_stack, 1.5, False),
+    ("RebarBundle", props.rebar_bundles, 1.5, False),
+    ("Barrier", props.barriers, 1.5, False),
+    ("TrafficCone", props.traffic_cones, 2, False),
+    ("PortableToilet", props.portable_toilets, 1, True),
+    ("Skip", props.skip, 1.5, False),
+    ("Generator", props.generator_set, 1, True),
+    ("Worker", props.workers, 2.5, False),
+)
+
+
+def plan_site(seed: int, params: SiteParams) -> SitePlan:
+    """Place every asset of the site of ``seed`` (same seed and parameters, same plan)."""
+    params = params.validated()
+    rng = stream(seed, "site-layout")
+    plan = SitePlan(seed, params)
+    half = params.size / 2
+    road_half = half - params.road_inset
+    plan.road = _road_loop(road_half, 8.0)
+    w = plan.road_width
+    reserved = [Footprint((0.0, s * road_half), (2 * road_half + w, w)) for s in (-1, 1)]
+    reserved += [Footprint((s * road_half, 0.0), (w, 2 * road_half + w)) for s in (-1, 1)]
+    gate = (-4.0, 4.0)
+    reserved.append(Footprint((0.0, -(road_half + half) / 2), (gate[1] - gate[0], half - road_half)))  # gate access
+    placer = _Placer(half - 1.0, reserved)
+    inner = road_half - w / 2 - 1.0
+
+    # fence along the boundary, 0.5 m inside, with a gate on the south side
+    f = half - 0.5
+    plan.fence_runs = [
+        (np.array([-f + 0.6, -f]), np.array([gate[0], -f])), (np.array([gate[1], -f]), np.array([f - 0.6, -f])),
+        (np.array([f, -f + 0.6]), np.array([f, f - 0.6])), (np.array([f - 0.6, f]), np.array([-f + 0.6, f])),
+        (np.array([-f, f - 0.6]), np.array([-f, -f + 0.6])),
+    ]
+
+    # buildings in the middle
+    n_build = int(rng.integers(params.buildings[0], params.buildings[1] + 1))
+    building_plans = []
+    for k in range(n_build):
+        brng = stream(seed, "asset", "Building", k)
+        phase = params.phase if params.phase is not None else float(brng.uniform(0.25, 1.0))
+        asset = structures.building(brng, phase, params.floors, max_length=2 * inner * (0.9 if n_build == 1 else 0.6))
+        yaw0 = 0.0 if params.layout == "grid" else float(brng.uniform(-0.3, 0.3))
+        cands = [((brng.uniform(-inner, inner), brng.uniform(-inner, inner)), yaw0 + brng.choice([0, math.pi / 2])) for _ in range(300)]
+        placed = placer.try_place(asset, cands)
+        if placed is None:
+            plan.skipped["Building"] = plan.skipped.get("Building", 0) + 1
+            continue
+        plan.placed.append(placed)
+        building_plans.append(placed)
+    tallest = max((p.asset.info["height"] for p in building_plans), default=10.0)
+    plan.hook_height = tallest + 4.0
+
+    # one tower crane per building. Cranes whose jib circles overlap are stacked: the new one
+    # hangs its hook 3 m above the other's jib, and neither jib can reach the other's mast.
+    cranes: list[tuple[np.ndarray, float, float]] = []  # (mast position, jib reach, top height)
+    for k, b in enumerate(building_plans):
+        crng = stream(seed, "asset", "Crane", k)
+        fp = b.footprint
+        for _ in range(100):
+            side = crng.choice([-1, 1])
+            along = crng.uniform(-0.4, 0.4) * fp.size[0]
+            offset = fp.size[1] / 2 + 5.5
+            c, s = math.cos(fp.yaw), math.sin(fp.yaw)
+            pos = np.array(fp.center) + np.array([c * along - s * side * offset, s * along + c * side * offset])
+            far = max(np.linalg.norm(fp.corners() - pos, axis=1))
+            jib = float(np.clip(far + 3.0, 20.0, 60.0))
+            hook = plan.hook_height
+            ok = True
+            for q, reach, top in cranes:
+                d = float(np.linalg.norm(pos - q))
+                if d >= jib + reach + 4.0:
+                    continue
+                if d >= max(jib, reach) + 3.0:
+                    hook = max(hook, top + 3.0)
+                else:
+                    ok = False
+                    break
+            if not ok:
+                continue
+            asset = structures.tower_crane(crng, hook, jib, params.frames, params.fps)
+            placed = placer.try_place(asset, [((pos[0], pos[1]), float(crng.uniform(0, math.pi / 2)))])
+            if placed is not None:
+                plan.placed.append(placed)
+                cranes.append((pos, jib + 1.0, asset.info["top"]))
+                break
+        else:
+            plan.skipped["Crane"] = plan.skipped.get("Crane", 0) + 1
+
+    # excavators
+    for k in range(int(rng.integers(params.excavators[0], params.excavators[1] + 1))):
+        erng = stream(seed, "asset", "Excavator", k)
+        asset = vehicles.excavator(erng, params.frames, params.fps)
+        placed = placer.try_place(asset, _candidates(erng, "scattered", -inner, inner, 300))
+        if placed is None:
+            plan.skipped["Excavator"] = plan.skipped.get("Excavator", 0) + 1
+        else:
+            plan.placed.append(placed)
+
+    # trucks on the road loop, evenly spaced, all at one speed (so they never catch up)
+    n_trucks = int(rng.integers(params.trucks[0], params.trucks[1] + 1))
+    perimeter = float(np.sum(np.linalg.norm(np.diff(np.vstack([plan.road, plan.road[:1]]), axis=0), axis=1)))
+    speed = float(rng.uniform(3.0, 5.0))
+    for k in range(n_trucks):
+        trng = stream(seed, "asset", "Truck", k)
+        offset = perimeter * k / max(n_trucks, 1) + float(trng.uniform(0, 0.2 * perimeter / max(n_trucks, 1)))
+        kind = "dump" if trng.random() < 0.5 else "mixer"
+        asset = vehicles.truck(trng, kind, plan.road, speed, offset, params.frames, params.fps)
+        plan.placed.append(PlacedAsset(asset, (0.0, 0.0), 0.0, Footprint((0.0, 0.0), (0.0, 0.0))))
+
+    # props
+    area = params.size**2
+    n_props = int(round(params.density * area / 170.0))
+    weights = np.array([w for _, _, w, _ in PROP_KINDS], dtype=float)
+    kinds = rng.choice(len(PROP_KINDS), size=n_props, p=weights / weights.sum())
+    centres = rng.uniform(-inner, inner, (max(2, int(area / 2500)), 2))
+    band_lo, band_hi = road_half + w / 2 + 1.0, half - 1.5
+    for k, ki in enumerate(kinds):
+        name, build, _, outer = PROP_KINDS[ki]
+        prng = stream(seed, "asset", name, k)
+        asset = build(prng)
+        if outer and band_hi - band_lo > 3.0:
+            cands = _band_candidates(prng, band_lo, band_hi, 60)
+        else:
+            cands = _candidates(prng, params.layout, -inner, inner, 60, centres)
+        placed = placer.try_place(asset, cands)
+        if placed is None:
+            plan.skipped[name] = plan.skipped.get(name, 0) + 1
+        else:
+            plan.placed.append(placed)
+
+    top = max(plan.hook_height - 3.0, tallest + 6.0)
+    plan.spawn_box = ((-half + 2.0, -half + 2.0, 1.5), (half - 2.0, half - 2.0, top))
+    plan.camera = ((-half * 0.55, -half * 0.95, min(20.0, top)), (0.0, 0.0, 2.0))
+    return plan
+
+
+def _band_candidates(rng: np.random.Generator, lo: float, hi: float, n: int):
+    """Positions in the band between the road and the fence, long side along the fence."""
+    for _ in range(n):
+        side = int(rng.integers(4))
+        t = rng.uniform(-hi + 3, hi - 3)
+        d = rng.uniform(lo, hi)
+        x, y, yaw = [(t, -d, 0.0), (d, t, math.pi / 2), (t, d, 0.0), (-d, t, math.pi / 2)][side]
+        yield (x, y), yaw
+
+
+def ground_part(size: float) -> Part:
+    """The ground: a 0.5 m thick slab whose top is z = 0, 40 m wider than the site."""
+    b = MeshBuilder().box((size + 40.0, size + 40.0, 0.5), (0, 0, -0.25), material="ground")
+    return Part("Ground", b.build())
+
+
+def fence_part(start: np.ndarray, end: np.ndarray) -> Part:
+    length = float(np.linalg.norm(end - start))
+    yaw = math.atan2(end[1] - start[1], end[0] - start[0])
+    return Part("Fence", props.fence_run(length).build(), location=(float(start[0]), float(start[1]), 0.0), rotation=(0.0, 0.0, yaw))

@@ -1,0 +1,194 @@
+"""Trucks that drive along routes with rolling wheels, and excavators that dig."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .assets import Asset, Keyframes, Part
+from .meshes import MeshBuilder, rotation_y
+
+WHEEL_R = 0.525
+WHEEL_W = 0.4
+
+
+def _wheel() -> MeshBuilder:
+    """A wheel centred on its origin, axle along local y."""
+    w = MeshBuilder()
+    core = WHEEL_R - 0.02
+    w.cylinder(core, (0, -WHEEL_W / 2, 0), (0, WHEEL_W / 2, 0), segments=32, material="rubber")
+    for a in np.arange(0, 2 * np.pi, 2 * np.pi / 24):  # tread blocks, outer corners within WHEEL_R
+        c, s = np.cos(a), np.sin(a)
+        mid = core + 0.0075  # blocks span [core - 0.004, WHEEL_R - 0.001] radially
+        w.box((0.06, WHEEL_W - 0.04, 0.023), (c * mid, 0, s * mid), rotation=rotation_y(-a + np.pi / 2), material="rubber")
+    for s in (-1, 1):
+        w.cylinder(0.28, (0, s * WHEEL_W / 2, 0), (0, s * (WHEEL_W / 2 + 0.02), 0), segments=12, material="steel_painted")
+    return w
+
+
+def route_poses(points: np.ndarray, speed: float, frames: int, fps: float, offset: float) -> tuple:
+    """Keyframes for driving a closed polyline at ``speed`` m/s from ``offset`` metres along it.
+
+    Every segment gets a key at its start and one 5 cm before its end with the segment's
+    heading, so the vehicle drives straight along segments and turns at vertices (routes
+    have rounded corners sampled every few degrees). Returns (frames (K,), xy (K, 2),
+    yaw (K,) unwrapped radians, distance driven (K,) metres).
+    """
+    seg = np.diff(np.vstack([points, points[:1]]), axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    heading = np.arctan2(seg[:, 1], seg[:, 0])
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    perimeter = cum[-1]
+    total = speed * (frames - 1) / fps
+    s0 = offset % perimeter
+    laps = int(np.ceil((s0 + total) / perimeter)) + 1
+    delta = np.minimum(0.05, seg_len / 4)
+    keys_s, keys_seg = [], []
+    for lap in range(laps):
+        for i in range(len(seg)):
+            a = lap * perimeter + cum[i]
+            keys_s += [a, a + seg_len[i] - delta[i]]
+            keys_seg += [i, i]
+    keys_s, keys_seg = np.array(keys_s), np.array(keys_seg)
+    inside = (keys_s > s0) & (keys_s < s0 + total)
+    s = np.concatenate([[s0], keys_s[inside], [s0 + total]])
+    which = np.concatenate([[-1], keys_seg[inside], [-1]])
+    for k in (0, len(s) - 1):  # boundary keys take the segment they fall in
+        local = s[k] % perimeter
+        which[k] = min(np.searchsorted(cum, local, side="right") - 1, len(seg) - 1)
+    local = s % perimeter
+    local = np.where(np.isclose(local, perimeter), 0.0, local)
+    frac = np.clip((s - np.floor(s / perimeter) * perimeter - cum[which]) / seg_len[which], 0.0, 1.0)
+    xy = points[which] + frac[:, None] * seg[which]
+    yaw = np.unwrap(heading[which])
+    key_frames = 1 + (s - s0) / speed * fps
+    return key_frames, xy, yaw, s - s0
+
+
+def truck(rng: np.random.Generator, kind: str, route: np.ndarray, speed: float, offset: float, frames: int, fps: float) -> Asset:
+    """A three-axle dump or mixer truck (8.5-9.5 m, 2.5 m wide) driving the closed
+    ``route`` (polyline, metres) at ``speed`` m/s; its wheels roll (rotation = distance /
+    radius) and a mixer's drum turns."""
+    length = rng.uniform(8.5, 9.5)
+    body = MeshBuilder()
+    paint = "truck_paint"
+    body.box((length - 0.4, 0.9, 0.35), (0, 0, 0.95), material="steel_dark")  # chassis
+    cab_x = length / 2 - 1.2
+    body.box((2.2, 2.5, 2.3), (cab_x, 0, 1.15 + 1.15 + 0.1), material=paint)  # cab
+    body.box((0.05, 2.1, 0.9), (cab_x + 1.11, 0, 2.9), material="glass")  # windscreen
+    body.box((0.3, 2.4, 0.35), (length / 2 - 0.05, 0, 0.85), material="steel_dark")  # bumper
+    for s in (-1, 1):  # fenders over the front wheels
+        body.box((1.3, 0.45, 0.08), (cab_x + 0.1, s * 1.05, 1.2), material=paint)
+    parts = [Part("Truck", None)]  # filled below
+    drum_part = None
+    if kind == "dump":
+        bl, bw, bh = length - 3.2, 2.4, rng.uniform(1.2, 1.4)
+        bx = -length / 2 + bl / 2 + 0.2
+        z0 = 1.15
+        body.box((bl, bw, 0.1), (bx, 0, z0 + 0.05), material=paint)
+        for s in (-1, 1):
+            body.box((bl, 0.08, bh), (bx, s * (bw / 2 - 0.04), z0 + 0.1 + bh / 2), material=paint)
+        body.box((0.08, bw - 0.16, bh), (bx - bl / 2 + 0.04, 0, z0 + 0.1 + bh / 2), material=paint)
+        body.box((0.08, bw - 0.16, bh + 0.4), (bx + bl / 2 - 0.04, 0, z0 + 0.1 + (bh + 0.4) / 2), material=paint)
+    else:
+        body.box((0.3, 1.2, 1.4), (cab_x - 1.4, 0, 1.8), material="steel_dark")  # drum stand, front
+        body.box((0.3, 1.2, 1.0), (-length / 2 + 0.6, 0, 1.6), material="steel_dark")  # drum stand, rear
+        drum = MeshBuilder()
+        dl = rng.uniform(4.3, 4.8)
+        drum.cone(0.7, 1.15, (-dl / 2, 0, 0), (0.2, 0, 0), segments=24, material="mixer_drum")
+        drum.cone(1.15, 0.45, (0.2, 0, 0), (dl / 2, 0, 0), segments=24, material="mixer_drum")
+        # the drum's axis rises towards the rear at about 15 degrees
+        drum_part = Part("Truck", drum.build(), location=(-0.6, 0, 2.45), rotation=(0.0, np.radians(15), 0.0))
+    parts[0] = Part("Truck", body.build())
+
+    key_frames, xy, yaw, dist = route_poses(route, speed, frames, fps, offset)
+    parts[0].keys = Keyframes(key_frames, location=np.column_stack([xy, np.zeros(len(xy))]),
+                              rotation=np.column_stack([np.zeros((len(xy), 2)), yaw]))
+    spin = dist / WHEEL_R  # rolling without slipping
+    for x in (cab_x + 0.1, -length / 2 + 2.2, -length / 2 + 0.85):
+        for s in (-1, 1):
+            y = s * (1.25 - WHEEL_W / 2)
+            parts.append(Part("Truck", _wheel().build(), location=(x, y, WHEEL_R), parent=0,
+                              keys=Keyframes(key_frames, rotation=np.column_stack([np.zeros(len(spin)), spin, np.zeros(len(spin))]))))
+    if drum_part is not None:
+        drum_spin = np.linspace(0, rng.uniform(0.2, 0.4) * 2 * np.pi * (frames - 1) / fps, 2)  # 12-24 rpm
+        drum_part.parent = 0
+        drum_part.keys = Keyframes(np.array([1, frames]), rotation=np.column_stack([drum_spin, np.full(2, np.radians(15)), np.zeros(2)]))
+        parts.append(drum_part)
+    return Asset("Truck", parts, (length, 2.5), placement=None, moves=True, info={"kind": kind, "speed_m_s": speed})
+
+
+def _excavator_bucket_lowest(boom, arm, bucket, geom) -> float:
+    """Lowest z (metres) of the bucket for boom/arm/bucket angles (radians), by forward
+    kinematics with the same rotations as the keyframes (boom about y by -angle, arm and
+    bucket by +angle); swinging about z does not change heights."""
+    pivot = np.array(geom["pivot_world"])
+    lowest = np.inf
+    for b, a, c in zip(boom, arm, bucket):
+        r1 = rotation_y(-b)
+        p_arm = pivot + r1 @ np.array([geom["boom"], 0, 0])
+        r2 = r1 @ rotation_y(a)
+        p_bucket = p_arm + r2 @ np.array([geom["arm"], 0, 0])
+        r3 = r2 @ rotation_y(c)
+        for corner in ((1.1, 0, -0.6), (0, 0, -0.8), (1.1, 0, 0.2)):
+            lowest = min(lowest, (p_bucket + r3 @ np.array(corner))[2])
+    return lowest
+
+
+def excavator(rng: np.random.Generator, frames: int, fps: float) -> Asset:
+    """A 20 t hydraulic excavator on tracks (4.5 m x 2.8 m): its upper body swings back and
+    forth and its boom, arm and bucket go through a digging cycle above the ground."""
+    tracks = MeshBuilder()
+    for s in (-1, 1):
+        y = s * 1.1
+        tracks.box((3.6, 0.6, 0.9), (0, y, 0.45), material="steel_dark")
+        for x in (-1.8, 1.8):
+            tracks.cylinder(0.45, (x, y - 0.3, 0.45), (x, y + 0.3, 0.45), segments=16, material="steel_dark")
+    tracks.box((2.6, 1.6, 0.4), (0, 0, 0.95), material="steel_dark")  # undercarriage frame
+    tracks.cylinder(1.0, (0, 0, 1.15), (0, 0, 1.3), segments=20, material="steel_dark")  # slewing ring
+
+    upper = MeshBuilder()
+    upper.box((3.0, 2.5, 1.2), (-0.5, 0, 0.6 + 0.15), material="excavator_paint")
+    upper.box((1.0, 2.5, 0.9), (-1.9, 0, 0.75), material="excavator_paint")  # counterweight
+    upper.box((1.6, 0.95, 1.6), (0.4, 0.72, 1.35 + 0.8), material="excavator_paint")  # cab
+    upper.box((0.05, 0.8, 1.0), (1.21, 0.72, 2.3), material="glass")
+    upper.cylinder(0.08, (-1.2, -0.8, 1.35), (-1.2, -0.8, 2.3), segments=8, material="steel_dark")  # exhaust
+    body_z = 1.3  # upper body origin above the ground
+    pivot = (1.0, -0.35, 0.6)  # boom foot in the upper body's frame
+    geom = {"pivot_world": (pivot[0], pivot[1], body_z + pivot[2]), "boom": rng.uniform(5.2, 5.8), "arm": rng.uniform(2.6, 3.0)}
+    boom = MeshBuilder().box((geom["boom"], 0.5, 0.6), (geom["boom"] / 2, 0, 0), material="excavator_paint")
+    arm = MeshBuilder().box((geom["arm"], 0.35, 0.45), (geom["arm"] / 2, 0, 0), material="excavator_paint")
+    bucket = MeshBuilder()
+    bucket.prism([(0, 0.2), (0.2, -0.6), (1.1, -0.7), (1.1, 0.2)], 1.0, material="steel_dark")
+
+    n = 6
+    key_frames = np.linspace(1, frames, n).round().astype(int)
+    boom_a = np.radians(rng.uniform(15, 45, n))
+    arm_a = np.radians(rng.uniform(60, 110, n))
+    bucket_a = np.radians(rng.uniform(20, 90, n))
+    # keep the bucket at least 0.3 m above the ground over the whole cycle (sampled finely)
+    fine = np.linspace(0, 1, 60)
+
+    def sampled(a):
+        return np.interp(fine, np.linspace(0, 1, n), a)
+
+    for _ in range(40):
+        if _excavator_bucket_lowest(sampled(boom_a), sampled(arm_a), sampled(bucket_a), geom) >= 0.3:
+            break
+        boom_a = np.minimum(boom_a + np.radians(3), np.radians(60))
+        arm_a = np.maximum(arm_a - np.radians(3), np.radians(30))
+    swing = np.radians(rng.uniform(-40, 40, n))
+    zeros = np.zeros(n)
+    parts = [
+        Part("Excavator", tracks.build()),
+        Part("Excavator", upper.build(), location=(0, 0, body_z), parent=0,
+             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, zeros, swing]))),
+        Part("Excavator", boom.build(), location=pivot, parent=1,
+             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, -boom_a, zeros]))),
+        Part("Excavator", arm.build(), location=(geom["boom"], 0, 0), parent=2,
+             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, arm_a, zeros]))),
+        Part("Excavator", bucket.build(), location=(geom["arm"], 0, 0), parent=3,
+             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, bucket_a, zeros]))),
+    ]
+    reach = 1.0 + geom["boom"] + geom["arm"] + 1.2
+    lowest = _excavator_bucket_lowest(sampled(boom_a), sampled(arm_a), sampled(bucket_a), geom)
+    return Asset("Excavator", parts, (2 * reach, 2 * reach), info={"reach": reach, "bucket_lowest_z": lowest})
