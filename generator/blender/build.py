@@ -120,7 +120,8 @@ def _sun_and_sky(seed: int) -> dict:
     sun.rotation_euler = (math.pi / 2 - elevation, 0.0, azimuth + math.pi / 2)
     world = bpy.data.worlds.new("Sky")
     bpy.context.scene.world = world
-    world.use_nodes = True
+    if world.node_tree is None:
+        world.use_nodes = True
     nodes, links = world.node_tree.nodes, world.node_tree.links
     sky = nodes.new("ShaderNodeTexSky")
     sky.sky_type = "HOSEK_WILKIE"

@@ -76,7 +76,8 @@ def make_material(key: str, seed: int):
     base, rough, metal, noise = RECIPES.get(key, RECIPES["default"])
     rng = stream(seed, "material", key)
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    if mat.node_tree is None:
+        mat.use_nodes = True
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     bsdf = nodes.get("Principled BSDF") or nodes.new("ShaderNodeBsdfPrincipled")
     colour = _jitter(base, rng)

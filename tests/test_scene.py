@@ -1,0 +1,218 @@
+"""The procedural site generator: determinism, physical plausibility, motion, taxonomy."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+from generator import Simulator
+from generator.geometry.parts import MeshPart, closed_and_orientation
+from generator.geometry.raycast import SceneGeometry
+from generator.geometry.sampling import sample_triangles
+from generator.scene import CLASSES, build_site, plan_site, site_params
+from generator.scene.site import PROP_KINDS
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def small_site(tmp_path_factory):
+    out = tmp_path_factory.mktemp("site")
+    result = build_site(7, "small", out, preview=False, frames=60)
+    return result
+
+
+def _asset_triangles():
+    """World triangles of every placed asset of the open file at the current frame, by asset
+    index (-1: ground and fence), with each object's closedness."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out: dict[int, list] = {}
+    for obj in bpy.data.objects:
+        if obj.type != "MESH" or obj.name == "CameraSpawn":
+            continue
+        ev = obj.evaluated_get(depsgraph)
+        me = ev.data
+        me.calc_loop_triangles()
+        co = np.empty(len(me.vertices) * 3, np.float64)
+        me.vertices.foreach_get("co", co)
+        m = np.array(ev.matrix_world)
+        v = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        f = np.empty(len(me.loop_triangles) * 3, np.int64)
+        me.loop_triangles.foreach_get("vertices", f)
+        f = f.reshape(-1, 3)
+        key = -2 if obj.name.startswith("Ground") else int(obj.get("buildee_asset", -1))
+        out.setdefault(key, []).append((obj.name, v, f))
+    return out
+
+
+def test_same_seed_same_site_across_processes(tmp_path):
+    code = textwrap.dedent(
+        """
+        import hashlib, sys
+        import bpy, numpy as np
+        from generator.scene import build_site
+        build_site(int(sys.argv[1]), "small", sys.argv[2], preview=False, frames=40)
+        h = hashlib.sha256()
+        dg = bpy.context.evaluated_depsgraph_get()
+        for obj in sorted(bpy.data.objects, key=lambda o: o.name):
+            h.update(obj.name.encode())
+            if obj.type == "MESH":
+                ev = obj.evaluated_get(dg)
+                co = np.array([ev.matrix_world @ v.co for v in ev.data.vertices])
+                h.update(np.round(co, 5).astype(np.float64).tobytes())
+        print(h.hexdigest())
+        """
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+
+    def run(seed, folder, hashseed):
+        env["PYTHONHASHSEED"] = str(hashseed)
+        r = subprocess.run([sys.executable, "-c", code, str(seed), str(tmp_path / folder)], capture_output=True,
+                           text=True, cwd=ROOT, env=env)
+        assert r.returncode == 0, r.stderr[-2000:]
+        return r.stdout.strip().splitlines()[-1]
+
+    a, b, c = run(11, "a", 1), run(11, "b", 2), run(12, "c", 1)
+    assert a == b
+    assert a != c
+    assert (tmp_path / "a" / "site.json").read_text() == (tmp_path / "b" / "site.json").read_text()
+
+
+def test_saved_site_loads_with_taxonomy_ids(small_site):
+    sim = Simulator(small_site.blend, points_density=0.5)
+    assert sim.labels[: len(CLASSES)] == list(CLASSES)  # ids are the taxonomy's, stable across sites
+    assert sim.labels == list(CLASSES)
+    _, labels, _ = sim.compute_point_cloud(update_mask=False)
+    present = {sim.labels[i] for i in np.unique(labels)}
+    assert {"Ground", "Fence", "Building", "Truck"} <= present
+    info = json.loads((small_site.blend.parent / "site.json").read_text())
+    assert info["objects"] > 20 and info["triangles"] > 10_000
+
+
+def test_objects_rest_on_ground_and_do_not_intersect(small_site):
+    sim = Simulator(small_site.blend, points_density=0.1)  # loads the saved site
+    rng = np.random.default_rng(0)
+    checked = 0
+    for frame in (1, 30, 60):
+        bpy.context.scene.frame_set(frame)
+        assets = _asset_triangles()
+        parts = {}
+        for key, objects in assets.items():
+            v = np.concatenate([o[1] for o in objects])
+            assert key == -2 or v[:, 2].min() >= -1e-4, f"asset {key} ({objects[0][0]}) goes below the ground at frame {frame}"
+            if key >= 0:
+                assert v[:, 2].min() <= 0.01, f"asset {key} ({objects[0][0]}) floats {v[:, 2].min():.3f} m above the ground"
+            offset, faces = 0, []
+            for _, vo, fo in objects:
+                faces.append(fo + offset)
+                offset += len(vo)
+            f = np.concatenate(faces)
+            closed, outward = closed_and_orientation(v, f)
+            parts[key] = MeshPart(str(key), objects[0][0], v, f, closed=closed, outward=outward)
+        keys = [k for k in parts if k != -2]
+        for i, a in enumerate(keys):
+            for b in keys[i + 1:]:
+                hit = _touches(parts[a], parts[b], rng)
+                if hit is None:
+                    continue
+                checked += 1
+                assert not hit, f"{parts[a].label} (asset {a}) touches or enters {parts[b].label} (asset {b}) at frame {frame}"
+        # negative control: the same check flags an asset moved 0.2 m into itself
+        some = parts[keys[0]]
+        shifted = MeshPart("shifted", some.label, some.vertices + [0.2, 0.0, 0.0], some.faces, closed=some.closed, outward=some.outward)
+        assert _touches(some, shifted, rng) is True
+    assert checked > 0
+
+
+def _touches(a: MeshPart, b: MeshPart, rng) -> bool | None:
+    """True if surface samples of ``a`` near ``b`` come within 1 mm of ``b`` or lie inside
+    it; None if their bounding boxes are apart (nothing to check)."""
+    alo, ahi, blo, bhi = a.vertices.min(0), a.vertices.max(0), b.vertices.min(0), b.vertices.max(0)
+    if np.any(alo > bhi + 0.01) or np.any(blo > ahi + 0.01):
+        return None
+    tri = a.vertices[a.faces]  # only A's triangles near B need a look
+    near = np.all(tri.max(axis=1) >= blo - 0.01, axis=1) & np.all(tri.min(axis=1) <= bhi + 0.01, axis=1)
+    if not near.any():
+        return None
+    pts, _ = sample_triangles(a.vertices, a.faces[near], 300.0, rng)
+    pts = np.concatenate([pts, tri[near].reshape(-1, 3)])  # and their corners
+    geo_b = SceneGeometry([b])
+    return bool(geo_b.distance(pts).min() <= 1e-3 or geo_b.inside_solid(pts).any())
+
+
+def test_dynamic_objects_move_and_static_ones_do_not(small_site):
+    sim = Simulator(small_site.blend, points_density=2.0)
+    dyn = set(name.split(".")[0] for name in sim.dynamic_objects)
+    assert "Truck" in dyn
+    assert not dyn & {"Building", "Container", "Fence", "Ground", "SandPile", "GravelPile"}
+    p0 = np.array(sim.compute_point_cloud()[0])
+    mask = sim.dynamic_points_mask
+    for _ in range(5):
+        sim.step_frame()
+    p1 = sim.compute_point_cloud()[0]
+    assert np.array_equal(p0[~mask], p1[~mask])
+    moved = np.linalg.norm(p1[mask] - p0[mask], axis=1)
+    assert mask.sum() > 100 and np.median(moved) > 0.5  # trucks drive 3-5 m/s, 0.5 s later
+
+
+def test_crane_and_excavator_are_dynamic(tmp_path):
+    # a medium plan always holds a crane and an excavator; build it without the preview
+    result = build_site(0, "medium", tmp_path, preview=False, frames=20, density=0.2)
+    sim = Simulator(result.blend, points_density=0.05)
+    dyn = {name.split(".")[0] for name in sim.dynamic_objects}
+    assert {"Crane", "Excavator", "Truck"} <= dyn
+    info = json.loads((tmp_path / "site.json").read_text())
+    assert info["assets"]["Crane"] >= 1 and info["assets"]["Building"] >= 1
+
+
+def test_every_class_appears_across_a_few_seeds():
+    seen = set()
+    for seed in (0, 1, 2, 3):
+        plan = plan_site(seed, site_params("medium"))
+        for placed in plan.placed:
+            seen.update(p.label for p in placed.asset.parts if p.label)
+        if plan.fence_runs:
+            seen.add("Fence")
+    seen.add("Ground")  # every site has its ground slab
+    assert seen == set(CLASSES), f"missing: {set(CLASSES) - seen}"
+    assert {k for k, *_ in PROP_KINDS} | {"Building", "Crane", "Truck", "Excavator"} >= {
+        "Container", "Cabin", "BrickPallet"}
+
+
+def test_plans_are_deterministic_and_seed_dependent():
+    a, b, c = (plan_site(s, site_params("small")) for s in (5, 5, 6))
+    fa = [(p.asset.kind, p.position, p.yaw) for p in a.placed]
+    assert fa == [(p.asset.kind, p.position, p.yaw) for p in b.placed]
+    assert fa != [(p.asset.kind, p.position, p.yaw) for p in c.placed]
+
+
+@pytest.mark.parametrize(
+    "preset,overrides,message",
+    [
+        ("huge", {}, "unknown scene preset"),
+        ("medium", {"size": -10.0}, "site size"),
+        ("medium", {"density": -1.0}, "density"),
+        ("medium", {"layout": "spiral"}, "layout"),
+        ("medium", {"phase": 1.5}, "phase"),
+        ("medium", {"frames": 0}, "animation length"),
+    ],
+)
+def test_bad_parameters(preset, overrides, message):
+    with pytest.raises(ValueError, match=message):
+        site_params(preset, **overrides)
+
+
+def test_cli_bad_preset_exits_2(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "generator.scene", "--seed", "0", "--preset", "huge", "--out", str(tmp_path)],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and "invalid choice" in r.stderr
+    r = subprocess.run([sys.executable, "-m", "generator.scene", "--seed", "0", "--size", "-5", "--out", str(tmp_path)],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and r.stderr.strip().startswith("error: site size")
+    assert "Traceback" not in r.stderr
