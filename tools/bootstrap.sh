@@ -43,8 +43,13 @@ fi
 stamp=.venv/.installed-$(sha256sum pyproject.toml | cut -c1-16)
 if [ ! -f "$stamp" ]; then
   log "installing Python packages (about 1.5 minutes on a fresh machine)"
-  .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
-  .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
+  pip_log=.venv/pip-install.log
+  if ! { .venv/bin/python -m pip install --disable-pip-version-check --upgrade pip &&
+         .venv/bin/python -m pip install --disable-pip-version-check -e '.[test]'; } > "$pip_log" 2>&1; then
+    tail -n 40 "$pip_log" >&2
+    log "error: pip install failed (full log: $pip_log)"
+    exit 1
+  fi
   rm -f .venv/.installed-*
   touch "$stamp"
 fi

@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 from .site import LAYOUTS, PRESETS, SiteParams, SitePlan, plan_site, site_params  # noqa: F401
@@ -30,7 +30,6 @@ def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", pre
     (size, density, layout, phase, frames, fps, ...). Imports bpy."""
     from ..blender import session
     from ..blender.build import build_in_blender
-    from ..geometry.seeding import stream  # noqa: F401  (validates the seed below)
     from .site_map import draw_map
 
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -51,14 +50,14 @@ def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", pre
 
         sim = Simulator(blend, points_density=0.01, seed=seed, render_preset="preview")
         sim.configure_render(resolution=(480, 320))
-        rgb = sim.render().rgb
-        from PIL import Image
         import numpy as np
+        from PIL import Image
 
+        rgb = sim.render().rgb
         preview_path = out / "preview.png"
         Image.fromarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)).save(preview_path)
         session.open_blend(blend)  # leave Blender with the saved file, untouched by the preview
     return SiteResult(blend, preview_path, map_path, info)
 
 
-__all__ = ["build_site", "site_params", "plan_site", "SiteParams", "SitePlan", "PRESETS", "LAYOUTS", "CLASSES", "CLASS_ID", "SiteResult", "asdict"]
+__all__ = ["build_site", "site_params", "plan_site", "SiteParams", "SitePlan", "PRESETS", "LAYOUTS", "CLASSES", "CLASS_ID", "SiteResult"]

@@ -53,6 +53,14 @@ def frame_along(direction: np.ndarray) -> np.ndarray:
     return np.stack([x, np.cross(z, x), z], axis=1)
 
 
+def _axis_and_ring(p0, p1, segments: int):
+    """Start point, axis vector, length and a unit circle (segments, 3) in the z = 0 plane."""
+    p0 = np.asarray(p0, float)
+    axis = np.asarray(p1, float) - p0
+    a = 2 * np.pi * np.arange(segments) / segments
+    return p0, axis, float(np.linalg.norm(axis)), np.stack([np.cos(a), np.sin(a), np.zeros(segments)], axis=1)
+
+
 class MeshBuilder:
     """Accumulates primitives into one mesh. Material names map to slots on first use."""
 
@@ -118,11 +126,7 @@ class MeshBuilder:
 
     def cone(self, r0: float, r1: float, p0, p1, segments: int = 16, material: str = "default") -> "MeshBuilder":
         """Capped truncated cone: radius r0 at p0, r1 at p1 (r1 may be 0 for a tip)."""
-        p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
-        axis = p1 - p0
-        length = float(np.linalg.norm(axis))
-        a = 2 * np.pi * np.arange(segments) / segments
-        ring = np.stack([np.cos(a), np.sin(a), np.zeros(segments)], axis=1)
+        p0, axis, length, ring = _axis_and_ring(p0, p1, segments)
         if r1 <= 0:
             v = np.concatenate([ring * r0, [[0, 0, length]], [[0, 0, 0]]])
             k = np.arange(segments)
@@ -140,11 +144,7 @@ class MeshBuilder:
 
     def tube(self, r_out: float, r_in: float, p0, p1, segments: int = 24, material: str = "default") -> "MeshBuilder":
         """Hollow pipe (closed solid: outer wall, inner wall, two annular ends)."""
-        p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
-        axis = p1 - p0
-        length = float(np.linalg.norm(axis))
-        a = 2 * np.pi * np.arange(segments) / segments
-        ring = np.stack([np.cos(a), np.sin(a), np.zeros(segments)], axis=1)
+        p0, axis, length, ring = _axis_and_ring(p0, p1, segments)
         top = np.array([0, 0, length])
         v = np.concatenate([ring * r_out, ring * r_out + top, ring * r_in, ring * r_in + top])
         k = np.arange(segments)
