@@ -213,9 +213,7 @@ class Simulator:
 
     def _move(self, axis: int, distance: float) -> bool:
         d = _check_number("distance", distance)
-        m = self._world_from_camera.copy()
-        m[:3, 3] += d * m[:3, axis]
-        return self.set_world_from_camera(m)
+        return self.set_world_from_camera(cam_model.translated_along_axis(self._world_from_camera, axis, d))
 
     def move_camera_forward(self, distance: float) -> bool:
         """Move along the optical axis (camera +z) by ``distance`` metres; True if refused."""
@@ -234,11 +232,7 @@ class Simulator:
         centre; the horizon stays level. Never collides (returns False)."""
         a = _check_number("angle", angle)
         a = math.radians(a) if degrees else a
-        c, s = math.cos(-a), math.sin(-a)
-        rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        m = self._world_from_camera.copy()
-        m[:3, :3] = rz @ m[:3, :3]
-        return self.set_world_from_camera(m, check_collisions=False)
+        return self.set_world_from_camera(cam_model.turned_about_world_z(self._world_from_camera, a), check_collisions=False)
 
     def respawn_camera(self) -> np.ndarray:
         """Move the camera to a random free spawn point with a random heading (pitch kept,
@@ -254,7 +248,7 @@ class Simulator:
             yaw = self._respawn_rng.uniform(0.0, 2 * math.pi)
             if self.is_free(p):
                 break
-        self.set_world_from_camera(_look_pose(p, yaw, pitch), check_collisions=False)
+        self.set_world_from_camera(cam_model.heading_pose(p, yaw, pitch), check_collisions=False)
         return self.get_world_from_camera()
 
     # ---- time ----------------------------------------------------------------------------
@@ -337,15 +331,3 @@ def _label_table(present: set[str]) -> list[str]:
     stored = session.bpy.context.scene.get("buildee_labels")
     table = list(json.loads(stored)) if isinstance(stored, str) else []
     return table + sorted(present - set(table))
-
-
-def _look_pose(position: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
-    """world_from_camera at ``position`` looking along heading ``yaw`` (radians from +X,
-    counter-clockwise) and ``pitch`` (radians above the horizon), with zero roll."""
-    forward = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    down = np.cross(forward, right)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, down, forward, position
-    return m

@@ -184,3 +184,38 @@ def depth_to_world_points(depth: np.ndarray, K: np.ndarray, world_from_camera: n
     pc = rays * np.where(valid, depth, np.nan)[..., None]
     r = world_from_camera[:3, :3]
     return pc @ r.T + world_from_camera[:3, 3]
+
+
+def translated_along_axis(world_from_camera: np.ndarray, axis: int, distance: float) -> np.ndarray:
+    """The pose moved by ``distance`` metres along its own camera axis (0: x right,
+    1: y down, 2: z forward)."""
+    m = np.array(world_from_camera, dtype=np.float64)
+    m[:3, 3] += distance * m[:3, axis]
+    return m
+
+
+def turned_about_world_z(world_from_camera: np.ndarray, angle: float) -> np.ndarray:
+    """The pose turned right (clockwise seen from above) by ``angle`` radians about the
+    world Z axis through its centre; the horizon stays level."""
+    c, s = np.cos(-angle), np.sin(-angle)
+    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    m = np.array(world_from_camera, dtype=np.float64)
+    m[:3, :3] = rz @ m[:3, :3]
+    return m
+
+
+def heading_pose(position, yaw: float, pitch: float) -> np.ndarray:
+    """world_from_camera at ``position`` looking along heading ``yaw`` (radians from +X,
+    counter-clockwise seen from above) and ``pitch`` (radians above the horizon), zero roll."""
+    forward = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, np.cross(forward, right), forward, position
+    return m
+
+
+def look_at(eye, target) -> np.ndarray:
+    """world_from_camera at ``eye`` looking at ``target`` with zero roll (not straight down)."""
+    d = np.asarray(target, dtype=np.float64) - np.asarray(eye, dtype=np.float64)
+    return heading_pose(eye, float(np.arctan2(d[1], d[0])), float(np.arctan2(d[2], np.hypot(d[0], d[1]))))

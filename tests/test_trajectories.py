@@ -1,0 +1,156 @@
+"""Camera path planners: collision-free, deterministic, the paper's five actions."""
+
+import math
+
+import numpy as np
+import pytest
+
+from generator.geometry.camera import look_at, validate_rigid
+from generator.geometry.collision import position_is_free, segment_is_free
+from generator.geometry.raycast import SceneGeometry
+from generator.scene.meshes import MeshBuilder
+from generator.geometry.parts import MeshPart, closed_and_orientation
+from trajectories import (ACTIONS, Trajectory, TrajectoryError, lawnmower, modified_random_walk, orbit,
+                          random_walk, spline_flythrough)
+
+RADIUS = 0.5
+
+
+def _part(name, builder):
+    d = builder.build()
+    tris = np.concatenate([d.quads[:, [0, 1, 2]], d.quads[:, [0, 2, 3]], d.tris])
+    closed, outward = closed_and_orientation(d.vertices, tris)
+    return MeshPart(name, name, d.vertices, tris, closed=closed, outward=outward)
+
+
+class Checker:
+    """The MotionChecker interface on a numpy scene (what the Simulator does with bpy)."""
+
+    def __init__(self):
+        parts = [_part("Ground", MeshBuilder().box((120, 120, 0.5), (0, 0, -0.25)))]
+        for k, (x, y, h) in enumerate([(0, 0, 15), (20, 10, 25), (-20, 15, 10), (15, -20, 8), (-15, -15, 12)]):
+            parts.append(_part(f"Block{k}", MeshBuilder().box((10, 10, h), (x, y, h / 2))))
+        parts.append(_part("Wall", MeshBuilder().box((30, 0.3, 4), (0, -30, 2))))
+        self.geometry = SceneGeometry(parts)
+        self.moves = 0
+
+    def can_move(self, a, b):
+        self.moves += 1
+        return segment_is_free(self.geometry, np.asarray(a, float), np.asarray(b, float), RADIUS)
+
+    def is_free(self, p):
+        return position_is_free(self.geometry, np.asarray(p, float), RADIUS)
+
+
+@pytest.fixture(scope="module")
+def checker():
+    return Checker()
+
+
+def _assert_swept_free(geometry, positions):
+    """Independent check: sample the path every 2 cm; the sphere never touches a surface."""
+    pts = [positions[:1]]
+    for a, b in zip(positions[:-1], positions[1:]):
+        n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.02)) + 1)
+        pts.append(a + np.linspace(0, 1, n)[1:, None] * (b - a))
+    pts = np.concatenate(pts)
+    d = geometry.distance(pts)
+    assert d.min() >= RADIUS - 2e-3, f"the camera sphere comes {d.min():.3f} m from a surface"
+    assert not geometry.inside_solid(pts).any()
+
+
+def _start():
+    return look_at((5.0, -40.0, 2.0), (5.0, 0.0, 2.0))
+
+
+def _plans(checker, seed):
+    rng = lambda: np.random.default_rng(seed)  # noqa: E731
+    return {
+        "random_walk": random_walk(checker, _start(), 150, rng(), step=1.5, angle=20),
+        "modified_random_walk": modified_random_walk(checker, _start(), 150, rng(), step=1.5, angle=20),
+        "orbit": orbit(checker, (0, 0), 35.0, 8.0, 60, look_at_height=5.0),
+        "lawnmower": lawnmower(checker, ((-40, -40), (40, 40)), 12.0, 80, spacing=20.0),
+        "spline": spline_flythrough(checker, ((-45, -45, 2), (45, 45, 20)), 60, rng(), speed=4.0),
+    }
+
+
+def test_every_kind_is_collision_free_and_deterministic(checker):
+    a, b, c = _plans(checker, 3), _plans(checker, 3), _plans(checker, 4)
+    for kind, traj in a.items():
+        assert traj.kind == kind and len(traj) >= 60
+        for pose in traj.poses:
+            validate_rigid(pose)
+        _assert_swept_free(checker.geometry, traj.positions)
+        np.testing.assert_array_equal(traj.poses, b[kind].poses)
+        np.testing.assert_allclose(np.diff(traj.timestamps), 0.1)
+        if kind in ("random_walk", "modified_random_walk", "spline"):
+            assert not np.array_equal(traj.poses, c[kind].poses)
+    # the y = 0 pass crosses the 15 m block: asked for 12 m, the survey rises in 5 m steps to 17 m
+    assert a["lawnmower"].params["altitude_m"] == 17.0
+    assert a["orbit"].params["altitude_m"] == 8.0  # the 35 m circle is clear at 8 m
+
+
+def test_random_walks_use_exactly_the_five_actions(checker):
+    for planner in (random_walk, modified_random_walk):
+        traj = planner(checker, _start(), 200, np.random.default_rng(1), step=1.0, angle=15)
+        assert len(traj.actions) == 200 and set(traj.actions) <= set(ACTIONS)
+        for k, action in enumerate(traj.actions):
+            before, after = traj.poses[k], traj.poses[k + 1]
+            move = after[:3, 3] - before[:3, 3]
+            if action.startswith("turn"):
+                assert np.allclose(move, 0)
+                yaw = math.degrees(math.atan2(after[1, 2], after[0, 2]) - math.atan2(before[1, 2], before[0, 2]))
+                assert (yaw + 180) % 360 - 180 == pytest.approx(15 if action == "turn_left" else -15, abs=1e-6)
+            elif np.allclose(move, 0):
+                continue  # refused move: the pose stays
+            else:
+                axis = {"forward": before[:3, 2], "left": -before[:3, 0], "right": before[:3, 0]}[action]
+                np.testing.assert_allclose(move, axis, atol=1e-9)
+    rw = random_walk(checker, _start(), 300, np.random.default_rng(2))
+    counts = {a: rw.actions.count(a) for a in ACTIONS}
+    assert min(counts.values()) > 30  # uniform over the five
+
+
+def test_modified_walk_goes_straight_until_blocked(checker):
+    traj = modified_random_walk(checker, _start(), 80, np.random.default_rng(5), step=1.0, angle=15)
+    first_turn = next(k for k, a in enumerate(traj.actions) if a != "forward")
+    pose = traj.poses[first_turn]
+    ahead = pose[:3, 3] + pose[:3, 2]
+    assert not checker.can_move(pose[:3, 3], ahead)  # it turned only when forward was blocked
+    assert first_turn >= 5
+
+
+def test_save_load_round_trip(checker, tmp_path):
+    traj = random_walk(checker, _start(), 20, np.random.default_rng(0))
+    back = Trajectory.load(traj.save(tmp_path / "walk.npz"))
+    np.testing.assert_array_equal(back.poses, traj.poses)
+    np.testing.assert_array_equal(back.timestamps, traj.timestamps)
+    assert back.actions == traj.actions and back.kind == traj.kind and back.params == traj.params
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(TrajectoryError, match="not a trajectory"):
+        Trajectory.load(tmp_path / "junk.npz")
+    with pytest.raises(TrajectoryError, match="not found"):
+        Trajectory.load(tmp_path / "missing.npz")
+
+
+@pytest.mark.parametrize("kwargs", [{"steps": 0}, {"step": -1.0}, {"angle": 0.0}])
+def test_bad_walk_parameters(checker, kwargs):
+    args = {"steps": 10, "step": 1.0, "angle": 15.0} | kwargs
+    with pytest.raises(ValueError):
+        random_walk(checker, _start(), args["steps"], np.random.default_rng(0), step=args["step"], angle=args["angle"])
+
+
+def test_walk_matches_the_simulators_own_moves(tmp_path):
+    """The planner's actions mean what the Simulator's move/turn calls do."""
+    import scenes
+    from generator import Simulator
+
+    sim = Simulator(scenes.walls_scene(tmp_path / "walls.blend"), points_density=1, collision_radius=0.3)
+    start = sim.get_world_from_camera()
+    traj = random_walk(sim, start, 60, np.random.default_rng(9), step=0.8, angle=30)
+    calls = {"forward": lambda: sim.move_camera_forward(0.8), "left": lambda: sim.move_camera_right(-0.8),
+             "right": lambda: sim.move_camera_right(0.8), "turn_left": lambda: sim.turn_camera_right(-30),
+             "turn_right": lambda: sim.turn_camera_right(30)}
+    for k, action in enumerate(traj.actions):
+        calls[action]()
+        np.testing.assert_allclose(sim.get_world_from_camera(), traj.poses[k + 1], atol=1e-9)

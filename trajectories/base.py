@@ -1,0 +1,77 @@
+"""Trajectories: camera poses plus timestamps, and the interface planners ask about space."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+FORMAT = "buildee-trajectory-1"
+
+
+class MotionChecker(Protocol):
+    """What a planner may ask (``generator.Simulator`` implements it)."""
+
+    def can_move(self, start, end) -> bool:
+        """May the camera sphere travel straight from ``start`` to ``end`` (world metres)?"""
+
+    def is_free(self, position) -> bool:
+        """Does the camera sphere fit at ``position``?"""
+
+
+class TrajectoryError(ValueError):
+    """A trajectory cannot be planned or read."""
+
+
+@dataclass
+class Trajectory:
+    """``poses`` (T, 4, 4) OpenCV world_from_camera, ``timestamps`` (T,) seconds,
+    ``actions`` (T - 1,) the step that led to each pose after the first ('' if none),
+    ``kind`` and ``params`` describing how it was planned."""
+
+    poses: np.ndarray
+    timestamps: np.ndarray
+    kind: str
+    actions: list[str] = field(default_factory=list)
+    params: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self.poses[:, :3, 3]
+
+    def save(self, path: str | Path) -> Path:
+        """Write a .npz: poses, timestamps, actions, and a JSON header (format, kind, params)."""
+        path = Path(path)
+        header = json.dumps({"format": FORMAT, "kind": self.kind, "params": self.params, "units": {
+            "poses": "world_from_camera 4x4, OpenCV camera axes, metres", "timestamps": "seconds"}})
+        with open(path, "wb") as f:
+            np.savez_compressed(f, poses=self.poses.astype(np.float64), timestamps=self.timestamps.astype(np.float64),
+                                actions=np.array(self.actions, dtype=str), header=np.array(header))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Trajectory":
+        path = Path(path)
+        if not path.is_file():
+            raise TrajectoryError(f"trajectory file not found: {path}")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                header = json.loads(str(z["header"]))
+                poses, times, actions = z["poses"], z["timestamps"], [str(a) for a in z["actions"]]
+        except (OSError, ValueError, KeyError) as exc:
+            raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}") from None
+        if header.get("format") != FORMAT:
+            raise TrajectoryError(f"unsupported trajectory format {header.get('format')!r} in {path}")
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(times) != len(poses):
+            raise TrajectoryError(f"inconsistent trajectory arrays in {path}")
+        return cls(poses, times, header["kind"], actions, header.get("params", {}))
+
+
+def timestamps(n: int, fps: float) -> np.ndarray:
+    return np.arange(n, dtype=np.float64) / float(fps)

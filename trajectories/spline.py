@@ -1,0 +1,60 @@
+"""A smooth fly-through: a Catmull-Rom spline through random free waypoints, flown at
+constant speed, looking along the path and slightly down (video-like sequences)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from generator.geometry.camera import heading_pose
+
+from .base import MotionChecker, Trajectory, TrajectoryError, timestamps
+
+
+def _catmull_rom(points: np.ndarray, samples_per_segment: int) -> np.ndarray:
+    p = np.vstack([points[:1], points, points[-1:]])
+    t = np.linspace(0, 1, samples_per_segment, endpoint=False)[:, None]
+    out = []
+    for k in range(1, len(p) - 2):
+        p0, p1, p2, p3 = p[k - 1], p[k], p[k + 1], p[k + 2]
+        out.append(0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t**2 + (-p0 + 3 * p1 - 3 * p2 + p3) * t**3))
+    out.append(points[-1:])
+    return np.concatenate(out)
+
+
+def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.random.Generator,
+                      speed: float = 3.0, waypoints: int = 6, pitch_deg: float = -15.0, fps: float = 10.0,
+                      attempts: int = 50) -> Trajectory:
+    """``frames`` poses flown at ``speed`` m/s through ``waypoints`` random free points
+    inside ``bounds`` ((xmin, ymin, zmin), (xmax, ymax, zmax)); retried until every leg
+    between consecutive poses is collision-free."""
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+    if frames < 2 or speed <= 0 or np.any(hi <= lo):
+        raise ValueError("a fly-through needs frames >= 2, speed > 0 and non-empty bounds")
+    length = speed * (frames - 1) / fps
+    pitch = math.radians(pitch_deg)
+    for _ in range(attempts):
+        pts = [lo + rng.random(3) * (hi - lo)]
+        while len(pts) < waypoints:
+            cand = lo + rng.random(3) * (hi - lo)
+            if checker.is_free(cand) and np.linalg.norm(cand - pts[-1]) > length / waypoints * 0.5:
+                pts.append(cand)
+        if not checker.is_free(pts[0]):
+            continue
+        curve = _catmull_rom(np.array(pts), 50)
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+        if cum[-1] < length:
+            continue
+        s = np.linspace(0.0, length, frames)
+        pos = np.column_stack([np.interp(s, cum, curve[:, k]) for k in range(3)])
+        if not all(checker.can_move(a, b) for a, b in zip(pos[:-1], pos[1:])):
+            continue
+        ahead = np.column_stack([np.interp(np.minimum(s + 1.0, cum[-1]), cum, curve[:, k]) for k in range(3)])
+        d = ahead - pos
+        d[-1] = d[-2] if frames > 1 else d[-1]
+        yaw = np.arctan2(d[:, 1], d[:, 0])
+        poses = np.stack([heading_pose(p, y, pitch) for p, y in zip(pos, yaw)])
+        return Trajectory(poses, timestamps(frames, fps), "spline", [""] * (frames - 1),
+                          {"speed_m_s": speed, "waypoints": np.array(pts).tolist(), "pitch_deg": pitch_deg, "fps": fps})
+    raise TrajectoryError(f"no collision-free fly-through found in {attempts} attempts")
