@@ -1,10 +1,22 @@
-"""``python -m generator --seeds 0 137 281``: the main job."""
+"""``python -m generator --seeds 0 137 281``: build, fly and render one site per seed.
+
+The main process never imports bpy; every seed runs in its own worker process.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
+
+from trajectories import KINDS
+
+from .batch.config import RunConfig
+from .render_settings import PRESETS as RENDER_PRESETS
+from .scene.site import PRESETS as SCENE_PRESETS
+
+DEFAULTS = RunConfig()
 
 
 def _int_at_least(minimum: int, what: str):
@@ -22,55 +34,105 @@ def _int_at_least(minimum: int, what: str):
     return parse
 
 
-_seed = _int_at_least(0, "seed")
-_positive = _int_at_least(1, "value")
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        w = h = 0
+    if w <= 0 or h <= 0:
+        raise argparse.ArgumentTypeError(f"resolution must be WxH with positive integers, e.g. 640x480; got {text!r}")
+    return w, h
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        k, n = (int(v) for v in text.split("/"))
+    except ValueError:
+        k, n = -1, 0
+    if n < 1 or not 0 <= k < n:
+        raise argparse.ArgumentTypeError(f"shard must be K/N with 0 <= K < N, e.g. 0/4; got {text!r}")
+    return k, n
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
 
 
 def parse_args(argv=None) -> argparse.Namespace:
     p = argparse.ArgumentParser(
         prog="python -m generator",
-        description="Build one site per seed and explore it with the Simulator (interim demo: "
-        "the full dataset export arrives with the batch generator).",
-    )
-    p.add_argument("--seeds", type=_seed, nargs="+", default=[0, 137, 281], help="scene seeds (default: 0 137 281)")
+        description="Build one procedural construction site per seed, fly camera trajectories through it and "
+                    "write, per frame, RGB/depth/labels/instances (EXR), RGB (PNG), plus each trajectory, its "
+                    "coverage and a manifest. Finished seeds are skipped on rerun.")
+    p.add_argument("--seeds", type=_int_at_least(0, "seed"), nargs="+", default=[0, 137, 281],
+                   help="scene seeds, non-negative integers (default: 0 137 281)")
     p.add_argument("--out", type=Path, default=Path("output"), help="output folder (default: ./output)")
-    p.add_argument("--steps", type=_positive, default=100, help="random-walk steps per seed (default: 100)")
-    return p.parse_args(argv)
+    p.add_argument("--scene-preset", choices=sorted(SCENE_PRESETS), default=DEFAULTS.scene_preset,
+                   help=f"site size and content (default: {DEFAULTS.scene_preset})")
+    p.add_argument("--render-preset", choices=list(RENDER_PRESETS), default=DEFAULTS.render_preset,
+                   help=f"render quality (default: {DEFAULTS.render_preset}: Cycles, 4 samples, denoised)")
+    p.add_argument("--resolution", type=_resolution, default=DEFAULTS.resolution,
+                   help="image size WxH in pixels (default: 640x480)")
+    p.add_argument("--frames", type=_int_at_least(2, "frames"), default=DEFAULTS.frames,
+                   help=f"frames per trajectory, at 10 frames per second of scene time (default: {DEFAULTS.frames})")
+    p.add_argument("--trajectory", choices=KINDS, action="append", dest="trajectories",
+                   help="trajectory kind, repeatable (default: orbit and spline)")
+    p.add_argument("--points-density", type=_positive_float, default=DEFAULTS.points_density,
+                   help=f"surface points per square metre for tracking and coverage (default: {DEFAULTS.points_density})")
+    p.add_argument("--workers", type=_int_at_least(1, "workers"), default=1,
+                   help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
+    p.add_argument("--shard", type=_shard, default=(0, 1),
+                   help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
+    p.add_argument("--overwrite", action="store_true", help="redo seeds that are already complete")
+    args = p.parse_args(argv)
+    if len(set(args.seeds)) != len(args.seeds):
+        p.error("--seeds lists a seed twice")
+    return args
 
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    cfg = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
+                    tuple(args.trajectories or DEFAULTS.trajectories), args.points_density, DEFAULTS.max_depth)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
-        probe = args.out / ".write-test"
+        probe = args.out / f".write-test-{os.getpid()}"
         probe.write_text("")
         probe.unlink()
     except OSError as exc:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
-    from tqdm import tqdm
+    from .batch.runner import plan_seeds, run_seeds
 
-    from .demo import run_seed
-
-    failed = 0
-    with tqdm(total=len(args.seeds) * args.steps, desc="steps", unit="step") as bar:
-        for seed in args.seeds:
-            try:
-                r = run_seed(seed, args.out, args.steps, bar)
-            except Exception as exc:  # report and continue with the other seeds
-                failed += 1
-                tqdm.write(f"seed {seed}: FAILED: {exc}")
-                continue
-            tqdm.write(
-                f"seed {seed}: {r['points']:,} points, final coverage {r['coverage'][-1]:.3f}, "
-                f"AUC {r['auc']:.3f}, {r['seconds']:.1f} s -> {args.out / f'seed_{seed:06d}'}"
-            )
+    k, n = args.shard
+    seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
+    todo, skipped, notes = plan_seeds(args.out, seeds, cfg, args.overwrite)
+    for line in notes:
+        print(line)
+    for r in skipped:
+        print(f"seed {r.seed}: already complete, skipped")
+    try:
+        results = run_seeds(args.out, todo, cfg, args.workers) if todo else []
+    except KeyboardInterrupt:
+        print("interrupted: unfinished seeds were removed; rerun the same command to finish them", file=sys.stderr)
+        return 130
+    results = sorted(skipped + results, key=lambda r: seeds.index(r.seed))
+    print(f"\n{'seed':>8}  {'status':<8} {'frames':>6} {'points':>10} {'visible tracks':>15} {'time':>7}")
+    for r in results:
+        s = r.summary
+        print(f"{r.seed:>8}  {r.status:<8} {s.get('frames', '-'):>6} {s.get('points', 0):>10,} "
+              f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.status == "failed" else ""))
+    failed = [r for r in results if r.status == "failed"]
+    if failed:
+        print(f"{len(failed)} seed(s) failed; their partial output is in {args.out}/.seed_*.partial", file=sys.stderr)
     return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        sys.exit(130)
+    sys.exit(main())

@@ -252,16 +252,20 @@ class Simulator:
         return self.get_world_from_camera()
 
     # ---- time ----------------------------------------------------------------------------
-    def step_frame(self) -> int:
-        """Advance the animation by one frame; dynamic objects and their points move.
-        Returns the new frame number."""
+    def set_frame(self, frame: int) -> int:
+        """Jump to animation ``frame``; dynamic objects and their points move there."""
         self._check_current()
-        self.frame += 1
+        self.frame = int(frame)
         session.set_frame(self.frame)
         self._geometry.set_matrices(dynamic_matrices(self._bindings))
         self._points.update(self._parts)
         bcam.write_pose(self._world_from_camera, self._camera)
         return self.frame
+
+    def step_frame(self) -> int:
+        """Advance the animation by one frame; dynamic objects and their points move.
+        Returns the new frame number."""
+        return self.set_frame(self.frame + 1)
 
     # ---- rendering -----------------------------------------------------------------------
     def _refresh_intrinsics(self) -> None:

@@ -91,6 +91,10 @@ def test_saved_site_loads_with_taxonomy_ids(small_site):
     _, labels, _ = sim.compute_point_cloud(update_mask=False)
     present = {sim.labels[i] for i in np.unique(labels)}
     assert {"Ground", "Fence", "Building", "Truck"} <= present
+    # the CameraSpawn volume is not rendered, yet gives spawn points above the whole site
+    sp = sim.spawn_points
+    assert len(sp) > 500 and sp[:, 2].min() >= 1.5 - 1e-9
+    assert np.ptp(sp[:, 0]) > 40 and np.ptp(sp[:, 1]) > 40  # a 50 m site
     info = json.loads((small_site.blend.parent / "site.json").read_text())
     assert info["objects"] > 20 and info["triangles"] > 10_000
 

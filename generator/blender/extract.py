@@ -74,6 +74,19 @@ def _matrix(m) -> np.ndarray:
     return np.array(m, dtype=np.float64)
 
 
+def _hidden_spawn_volume() -> MeshPart | None:
+    """A CameraSpawn mesh that is not rendered (the usual case) is absent from the evaluated
+    scene: read its own mesh data (modifiers are not applied to spawn volumes)."""
+    for obj in sorted(bpy.data.objects, key=lambda o: o.name):
+        if obj.type == "MESH" and label_of(obj.name) == SPAWN_LABEL and len(obj.data.polygons):
+            verts, faces = _mesh_arrays(obj.data)
+            world = _matrix(obj.matrix_world)
+            wv = verts @ world[:3, :3].T + world[:3, 3]
+            c, o = closed_and_orientation(wv, faces)
+            return MeshPart(obj.name, SPAWN_LABEL, wv, faces.copy(), closed=c, outward=o)
+    return None
+
+
 @dataclass
 class ExtractedScene:
     parts: list[MeshPart]
@@ -122,6 +135,8 @@ def extract_parts() -> ExtractedScene:
             continue
         found.append((key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, name))
 
+    if spawn is None:
+        spawn = _hidden_spawn_volume()
     found.sort(key=lambda f: f[0])
     parts, bindings = [], []
     for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, source in found:

@@ -1,0 +1,112 @@
+"""One seed of the batch job, in its own process: ``python -m generator.batch.worker
+CONFIG_JSON SEED FOLDER``. Builds the site, flies each trajectory rendering every frame,
+writes everything into FOLDER and finally its manifest. Progress goes to stdout as lines
+``@@{json}``; Blender's log goes to FOLDER/blender.log."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+
+def emit(**event) -> None:
+    print("@@" + json.dumps(event), flush=True)
+
+
+def run(config: dict, seed: int, folder: Path) -> dict:
+    from ..blender import session
+
+    folder.mkdir(parents=True, exist_ok=True)
+    session.set_log_path(folder / "blender.log")
+    import numpy as np
+
+    from exporters.frames import FrameWriter
+    from exporters.manifest import write_manifest
+
+    from .. import Simulator
+    from ..scene import build_site
+    from .config import RunConfig, plan_trajectory
+
+    cfg = RunConfig.from_dict(config)
+    t0 = time.perf_counter()
+    site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames))
+    sim = Simulator(site.blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
+                    render_preset=cfg.render_preset)
+    sim.configure_render(resolution=cfg.resolution)
+    start = sim.respawn_camera()
+    emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
+    fps = 10.0
+    tracks = 0
+    summary = {"trajectories": {}}
+    for kind in cfg.trajectories:
+        traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
+        out = folder / kind
+        writer = FrameWriter(out, sim.labels)
+        sim.reset_observations()
+        coverage = []
+        for i, pose in enumerate(traj.poses):
+            sim.set_frame(1 + i)
+            sim.set_world_from_camera(pose, check_collisions=False)
+            r = sim.render()
+            _, _, visible = sim.compute_point_cloud()
+            writer.write(i, r.rgb, r.depth, r.seg, r.instance)
+            coverage.append(sim.coverage)
+            tracks += int(visible.sum())
+            emit(event="frame")
+        traj.save(out / "trajectory.npz")
+        (out / "coverage.json").write_text(json.dumps({
+            "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
+            "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
+        summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
+    (folder / "labels.json").write_text(json.dumps(sim.labels))
+    summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
+    versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
+    write_manifest(folder, {"seed": seed, "config": cfg.to_dict(), "versions": versions, "summary": summary,
+                            "timing": {"seconds": time.perf_counter() - t0}})
+    return summary
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("buildee-sites")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def _die_with_parent() -> None:
+    """Linux: get SIGKILL when the runner dies, so no worker outlives a killed job."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL("libc.so.6").prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+def main(argv: list[str]) -> int:
+    _die_with_parent()
+    config, seed, folder = json.loads(argv[0]), int(argv[1]), Path(argv[2])
+    try:
+        # testing hook: BUILDEE_FAIL_SEEDS="5,7" makes those seeds fail after the site is built
+        if str(seed) in os.environ.get("BUILDEE_FAIL_SEEDS", "").split(","):
+            folder.mkdir(parents=True, exist_ok=True)
+            raise RuntimeError(f"seed {seed} failed on purpose (BUILDEE_FAIL_SEEDS)")
+        summary = run(config, seed, folder)
+    except Exception as exc:  # reported to the runner as one line; details in the log
+        import traceback
+
+        (folder / "error.log").write_text(traceback.format_exc())
+        emit(event="error", message=f"{exc.__class__.__name__}: {str(exc).strip().splitlines()[0] if str(exc).strip() else ''}")
+        return 1
+    emit(event="done", summary=summary)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

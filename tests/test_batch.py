@@ -1,0 +1,141 @@
+"""The batch job end to end, in real processes, on tiny configurations."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from exporters.exr import read_frame_exr
+from exporters.manifest import read_manifest, verify_manifest
+from trajectories import Trajectory
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--points-density", "0.3"]
+
+
+def run(out, *args, env_extra=None, **kw):
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | (env_extra or {})
+    return subprocess.run([sys.executable, "-m", "generator", "--out", str(out), *TINY, *args],
+                          capture_output=True, text=True, cwd=ROOT, env=env, **kw)
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    out = tmp_path_factory.mktemp("batch")
+    r = run(out, "--seeds", "4")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return out, r
+
+
+def test_seed_folder_is_complete_and_matches_its_manifest(finished):
+    out, r = finished
+    folder = out / "seed_000004"
+    assert verify_manifest(folder) == []
+    manifest = read_manifest(folder)
+    assert manifest["seed"] == 4 and manifest["config"]["frames"] == 3 and manifest["versions"]["bpy"]
+    labels = json.loads((folder / "labels.json").read_text())
+    for kind in ("orbit", "spline"):
+        traj = Trajectory.load(folder / kind / "trajectory.npz")
+        assert len(traj) == 3 and traj.kind == kind
+        for i in range(3):
+            f = read_frame_exr(folder / kind / f"frame_{i:06d}.exr")
+            assert f["depth"].shape == (32, 48) and f["label"].max() < len(labels)
+            png = np.asarray(Image.open(folder / kind / f"rgb_{i:06d}.png"))
+            assert png.shape == (32, 48, 3)
+            assert np.abs(png / 255.0 - f["rgb"].astype(np.float32)).max() <= 0.5 / 255 + 1e-3
+        cov = json.loads((folder / kind / "coverage.json").read_text())["coverage"]
+        assert len(cov) == 3 and all(b >= a for a, b in zip(cov, cov[1:]))
+    assert (folder / "scene" / "site.blend").is_file() and (folder / "blender.log").is_file()
+    assert not list(out.glob(".seed_*"))
+    assert "seed 4: 6 frames" in r.stdout and "Read blend" not in r.stdout  # Blender's log stays out
+
+
+def test_rerun_skips_finished_seeds(finished):
+    out, _ = finished
+    before = (out / "seed_000004" / "manifest.json").stat().st_mtime_ns
+    r = run(out, "--seeds", "4")
+    assert r.returncode == 0 and "seed 4: already complete, skipped" in r.stdout
+    assert (out / "seed_000004" / "manifest.json").stat().st_mtime_ns == before
+
+
+def test_same_seed_gives_identical_arrays(finished, tmp_path):
+    out, _ = finished
+    r = run(tmp_path, "--seeds", "4")
+    assert r.returncode == 0
+    a, b = read_manifest(out / "seed_000004")["files"], read_manifest(tmp_path / "seed_000004")["files"]
+    assert a.keys() == b.keys()
+    for rel in a:
+        if rel.endswith((".log", ".blend")):
+            continue  # Blender's log has timings; .blend bytes are checked through site.json and the frames
+        if a[rel]["sha256"] != b[rel]["sha256"]:
+            assert rel.endswith(".exr"), f"{rel} differs between two runs"
+            fa, fb = read_frame_exr(out / "seed_000004" / rel), read_frame_exr(tmp_path / "seed_000004" / rel)
+            for key in ("rgb", "depth", "label", "instance"):
+                np.testing.assert_array_equal(fa[key], fb[key])
+
+
+def test_failed_seed_is_reported_and_others_finish(tmp_path):
+    r = run(tmp_path, "--seeds", "5", "6", env_extra={"BUILDEE_FAIL_SEEDS": "5"})
+    assert r.returncode == 1
+    assert "seed 5: FAILED" in r.stdout and "failed on purpose" in r.stdout
+    assert read_manifest(tmp_path / "seed_000006") is not None
+    assert not (tmp_path / "seed_000005").exists()  # never marked complete
+    r2 = run(tmp_path, "--seeds", "5", "6", "--shard", "1/2")  # the shard holds only seed 6
+    assert r2.returncode == 0 and "seed 6: already complete, skipped" in r2.stdout and "seed 5" not in r2.stdout
+
+
+def test_killed_run_resumes(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--frames", "12", "--seeds", "8", "9"]
+    proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    deadline = time.time() + 240
+    while time.time() < deadline:  # wait until seed 8 is done and seed 9 is under way
+        if (tmp_path / "seed_000008").exists() and list((tmp_path / ".seed_000009.partial").glob("*/frame_*.exr")):
+            break
+        time.sleep(0.2)
+    else:
+        proc.kill()
+        pytest.fail("the run never reached the second seed")
+    os.killpg(proc.pid, signal.SIGKILL)  # a real kill: no cleanup in the runner
+    proc.wait()
+    time.sleep(1.0)  # the worker dies with its parent
+    assert (tmp_path / ".seed_000009.partial").exists() and not (tmp_path / "seed_000009").exists()
+    r = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "seed 8: already complete, skipped" in r.stdout
+    assert "seed 9: unfinished output from an earlier run removed; redoing it" in r.stdout
+    assert verify_manifest(tmp_path / "seed_000009") == [] and not (tmp_path / ".seed_000009.partial").exists()
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["--seeds", "-3"], "seed must be an integer >= 0"),
+        (["--seeds", "1.5"], "seed must be an integer >= 0"),
+        (["--scene-preset", "huge"], "invalid choice"),
+        (["--render-preset", "ultra"], "invalid choice"),
+        (["--trajectory", "zigzag"], "invalid choice"),
+        (["--shard", "3/2"], "shard must be K/N"),
+        (["--shard", "x"], "shard must be K/N"),
+        (["--resolution", "0x10"], "resolution must be WxH"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, args, message):
+    r = run(tmp_path, *args)
+    assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith("python -m generator: error:")
+
+
+def test_unwritable_output_folder(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    r = run(blocker / "sub", "--seeds", "1")
+    assert r.returncode == 2 and r.stderr.startswith("error: cannot write to output folder") and "Traceback" not in r.stderr
