@@ -19,7 +19,7 @@ class RunConfig:
     scene_preset: str = "medium"
     render_preset: str = "preview"
     resolution: tuple[int, int] = (640, 480)
-    frames: int = 60
+    frames: int = 40
     trajectories: tuple[str, ...] = ("orbit", "spline")
     points_density: float = 2.0
     max_depth: float = 60.0

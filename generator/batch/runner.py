@@ -60,8 +60,8 @@ def plan_seeds(out: Path, seeds: list[int], cfg: RunConfig, overwrite: bool) -> 
 
 
 class _Worker:
-    def __init__(self, seed: int, out: Path, cfg: RunConfig, bars, position: int, lock):
-        self.seed, self.out, self.lock = seed, out, lock
+    def __init__(self, seed: int, out: Path, cfg: RunConfig, position: int, lock):
+        self.seed, self.out, self.lock, self.position = seed, out, lock, position
         self.folder = partial_folder(out, seed)
         env = {k: v for k, v in os.environ.items() if k != "OCIO"}
         self.start_time = time.perf_counter()
@@ -124,7 +124,9 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, workers: int) -> list
     try:
         while pending or running:
             while pending and len(running) < workers:
-                running.append(_Worker(pending.pop(0), out, cfg, overall, 1 + len(running), lock))
+                used = {w.position for w in running}
+                position = min(p for p in range(1, workers + 2) if p not in used)
+                running.append(_Worker(pending.pop(0), out, cfg, position, lock))
             time.sleep(0.2)
             for w in [w for w in running if w.proc.poll() is not None]:
                 running.remove(w)
