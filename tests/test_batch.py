@@ -50,6 +50,24 @@ def test_seed_folder_is_complete_and_matches_its_manifest(finished):
             png = np.asarray(Image.open(folder / kind / f"rgb_{i:06d}.png"))
             assert png.shape == (32, 48, 3)
             assert np.abs(png / 255.0 - f["rgb"].astype(np.float32)).max() <= 0.5 / 255 + 1e-3
+        # COLMAP model: poses equal the trajectory's, keypoints are exact projections
+        from generator.geometry.camera import project
+        import pycolmap
+
+        rec = pycolmap.Reconstruction(str(folder / kind / "sparse" / "0"))
+        assert rec.num_reg_images() == 3 and rec.num_points3D() > 10
+        cam = rec.cameras[1]
+        K = np.array([[cam.params[0], 0, cam.params[2]], [0, cam.params[1], cam.params[3]], [0, 0, 1]])
+        for image in rec.images.values():
+            t = int(image.name[4:10])
+            m = np.eye(4)
+            m[:3, :4] = image.cam_from_world().matrix()
+            np.testing.assert_allclose(np.linalg.inv(m), traj.poses[t], atol=1e-6)
+            for p2d in image.points2D:
+                if p2d.has_point3D():
+                    uv, _ = project(rec.points3D[p2d.point3D_id].xyz[None], traj.poses[t], K)
+                    assert np.linalg.norm(uv[0] - p2d.xy) < 0.01
+        assert all(p.track.length() >= 2 for p in rec.points3D.values())
         cov = json.loads((folder / kind / "coverage.json").read_text())["coverage"]
         assert len(cov) == 3 and all(b >= a for a, b in zip(cov, cov[1:]))
     assert (folder / "scene" / "site.blend").is_file() and (folder / "blender.log").is_file()

@@ -23,7 +23,8 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     session.set_log_path(folder / "blender.log")
     import numpy as np
 
-    from exporters.frames import FrameWriter
+    from exporters.colmap import write_colmap_model
+    from exporters.frames import FrameWriter, frame_names
     from exporters.manifest import write_manifest
 
     from .. import Simulator
@@ -47,16 +48,30 @@ def run(config: dict, seed: int, folder: Path) -> dict:
         writer = FrameWriter(out, sim.labels)
         sim.reset_observations()
         coverage = []
+        static = ~sim.dynamic_points_mask
+        observations = []  # per frame: visible static point indices and their pixel positions
+        colors = np.zeros((sim.num_points, 3), dtype=np.uint8)
+        coloured = np.zeros(sim.num_points, dtype=bool)
         for i, pose in enumerate(traj.poses):
             sim.set_frame(1 + i)
             sim.set_world_from_camera(pose, check_collisions=False)
             r = sim.render()
-            _, _, visible = sim.compute_point_cloud()
+            points, _, visible = sim.compute_point_cloud()
             writer.write(i, r.rgb, r.depth, r.seg, r.instance)
+            seen = np.flatnonzero(visible & static)
+            uv, _ = sim.project(points[seen])
+            observations.append((seen, uv))
+            new = ~coloured[seen]
+            rgb8 = (np.clip(r.rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)  # the PNG's pixels
+            px = np.minimum(np.floor(uv[new]).astype(int), [sim.width - 1, sim.height - 1])
+            colors[seen[new]] = rgb8[px[:, 1], px[:, 0]]
+            coloured[seen[new]] = True
             coverage.append(sim.coverage)
             tracks += int(visible.sum())
             emit(event="frame")
         traj.save(out / "trajectory.npz")
+        write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses,
+                           [frame_names(i)[1] for i in range(len(traj))], observations, points, colors)
         (out / "coverage.json").write_text(json.dumps({
             "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
             "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
