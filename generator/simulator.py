@@ -141,6 +141,20 @@ class Simulator:
     def dynamic_objects(self) -> list[str]:
         return [p.name for p in self._parts if p.dynamic]
 
+    def point_table(self) -> dict:
+        """The point set as stored in exports: ``local`` (N, 3) metres (world for static
+        points, object frame for dynamic ones), ``labels``, ``instance`` (N,) int32,
+        ``dynamic_object`` (N,) int32 index into ``dynamic_objects`` (-1: static)."""
+        dyn_index = np.full(len(self._parts), -1, dtype=np.int32)
+        for k, i in enumerate(i for i, p in enumerate(self._parts) if p.dynamic):
+            dyn_index[i] = k
+        return {"local": self._points.local.copy(), "labels": self._points.labels.copy(),
+                "instance": self._points.part.copy(), "dynamic_object": dyn_index[self._points.part]}
+
+    def dynamic_object_matrices(self) -> np.ndarray:
+        """(D, 4, 4) world_from_object of the ``dynamic_objects`` at the current frame."""
+        return np.stack([p.matrix for p in self._parts if p.dynamic]) if self.dynamic_objects else np.zeros((0, 4, 4))
+
     @property
     def coverage(self) -> float:
         """Share of all surface points observed at least once (0 to 1)."""

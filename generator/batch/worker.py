@@ -26,6 +26,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     from exporters.colmap import write_colmap_model
     from exporters.frames import FrameWriter, frame_names
     from exporters.manifest import write_manifest
+    from exporters.tracks import TrackWriter
 
     from .. import Simulator
     from ..scene import build_site
@@ -52,12 +53,15 @@ def run(config: dict, seed: int, folder: Path) -> dict:
         observations = []  # per frame: visible static point indices and their pixel positions
         colors = np.zeros((sim.num_points, 3), dtype=np.uint8)
         coloured = np.zeros(sim.num_points, dtype=bool)
+        tracks_out = TrackWriter(out / "tracks.h5", sim.point_table(), sim.dynamic_objects, sim.labels, sim.K,
+                                 sim.width, sim.height, seed=seed)
         for i, pose in enumerate(traj.poses):
             sim.set_frame(1 + i)
             sim.set_world_from_camera(pose, check_collisions=False)
             r = sim.render()
             points, _, visible = sim.compute_point_cloud()
             writer.write(i, r.rgb, r.depth, r.seg, r.instance)
+            tracks_out.add_frame(float(traj.timestamps[i]), pose, points, visible, sim.dynamic_object_matrices(), sim.coverage)
             seen = np.flatnonzero(visible & static)
             uv, _ = sim.project(points[seen])
             observations.append((seen, uv))
@@ -69,6 +73,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
             coverage.append(sim.coverage)
             tracks += int(visible.sum())
             emit(event="frame")
+        tracks_out.close()
         traj.save(out / "trajectory.npz")
         write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses,
                            [frame_names(i)[1] for i in range(len(traj))], observations, points, colors)

@@ -1,0 +1,158 @@
+"""Per-trajectory point tracks in HDF5 (``tracks.h5``), readable with plain h5py.
+
+Layout (all lengths in metres, pixels as (x, y) with the top-left pixel's centre at
+(0.5, 0.5), poses OpenCV world_from_camera); attributes restate units and conventions.
+
+  /cameras    width, height (attrs); K (3, 3); world_from_camera (T, 4, 4); timestamps (T,) s
+  /points     local (N, 3) float64: world coordinates for static points, object frame for
+              dynamic ones; label (N,) int32; instance (N,) int32; dynamic_object (N,) int32
+              (index into /objects, -1 = static)
+  /objects    names (D,) of the dynamic objects; world_from_object (T, D, 4, 4)
+  /visibility offsets (T + 1,) int64: frame t's visible points are index[offsets[t]:offsets[t+1]];
+              index (M,) int32; xy (M, 2) float32 pixel positions; depth (M,) float32 planar depth
+  /dynamic    positions (T, Nd, 3) float32 world positions of the dynamic points (ids in point_ids)
+  /coverage   (T,) share of all points observed at least once after each frame
+  /tapvid     query_points (Q, 3) (t, y, x); tracks (Q, T, 2) (x, y); occluded (Q, T) bool;
+              tracks_3d (Q, T, 3) world metres; point_ids (Q,)
+  attrs       format_version, labels (JSON), conventions
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from generator.geometry.camera import project
+
+FORMAT_VERSION = "0.2"
+_CHUNK = 1 << 16
+
+
+def _append(ds, values) -> None:
+    values = np.asarray(values)
+    n = ds.shape[0]
+    ds.resize(n + len(values), axis=0)
+    ds[n:] = values
+
+
+class TrackWriter:
+    """Streams one trajectory's tracks to ``path`` frame by frame; :meth:`close` adds the
+    TAP-Vid query subset."""
+
+    def __init__(self, path: str | Path, table: dict, dynamic_names: list[str], labels: list[str],
+                 K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0):
+        self.path = Path(path)
+        self.f = h5py.File(self.path, "w")
+        self.table, self.queries, self.seed = table, queries, seed
+        self.K, self.width, self.height = np.asarray(K, float), int(width), int(height)
+        f = self.f
+        f.attrs.update({"format_version": FORMAT_VERSION, "labels": json.dumps(labels),
+                        "conventions": "metres; OpenCV camera (x right, y down, z forward); poses world_from_camera; "
+                                       "pixels (x, y), top-left pixel centre (0.5, 0.5); depth = planar z"})
+        cams = f.create_group("cameras")
+        cams.attrs.update({"width": self.width, "height": self.height})
+        cams["K"] = self.K
+        cams.create_dataset("world_from_camera", (0, 4, 4), maxshape=(None, 4, 4), dtype="f8", chunks=(64, 4, 4))
+        cams.create_dataset("timestamps", (0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+        pts = f.create_group("points")
+        opts = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+        for name, dtype in (("local", "f8"), ("label", "i4"), ("instance", "i4"), ("dynamic_object", "i4")):
+            key = {"label": "labels"}.get(name, name)
+            pts.create_dataset(name, data=np.asarray(table[key], dtype=dtype), **opts)
+        obj = f.create_group("objects")
+        obj["names"] = np.array(dynamic_names, dtype=h5py.string_dtype())
+        d = len(dynamic_names)
+        obj.create_dataset("world_from_object", (0, d, 4, 4), maxshape=(None, d, 4, 4), dtype="f8", chunks=(16, max(d, 1), 4, 4))
+        vis = f.create_group("visibility")
+        vis.create_dataset("offsets", data=np.zeros(1, np.int64), maxshape=(None,), chunks=(1024,))
+        vis.create_dataset("index", (0,), maxshape=(None,), dtype="i4", chunks=(_CHUNK,), **opts)
+        vis.create_dataset("xy", (0, 2), maxshape=(None, 2), dtype="f4", chunks=(_CHUNK, 2), **opts)
+        vis.create_dataset("depth", (0,), maxshape=(None,), dtype="f4", chunks=(_CHUNK,), **opts)
+        self.dyn_ids = np.flatnonzero(np.asarray(table["dynamic_object"]) >= 0).astype(np.int32)
+        dyn = f.create_group("dynamic")
+        dyn["point_ids"] = self.dyn_ids
+        dyn.create_dataset("positions", (0, len(self.dyn_ids), 3), maxshape=(None, len(self.dyn_ids), 3), dtype="f4",
+                           chunks=(1, max(len(self.dyn_ids), 1), 3), **opts)
+        f.create_dataset("coverage", (0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+
+    def add_frame(self, timestamp: float, world_from_camera: np.ndarray, world_points: np.ndarray,
+                  visible: np.ndarray, object_matrices: np.ndarray, coverage: float) -> None:
+        f = self.f
+        _append(f["cameras/world_from_camera"], world_from_camera[None])
+        _append(f["cameras/timestamps"], [timestamp])
+        idx = np.flatnonzero(visible).astype(np.int32)
+        xy, z = project(world_points[idx], world_from_camera, self.K)
+        _append(f["visibility/index"], idx)
+        _append(f["visibility/xy"], xy.astype(np.float32))
+        _append(f["visibility/depth"], z.astype(np.float32))
+        _append(f["visibility/offsets"], [f["visibility/offsets"][-1] + len(idx)])
+        _append(f["objects/world_from_object"], np.asarray(object_matrices, float)[None])
+        _append(f["dynamic/positions"], world_points[self.dyn_ids].astype(np.float32)[None])
+        _append(f["coverage"], [coverage])
+
+    def close(self) -> Path:
+        """Add the TAP-Vid subset (points visible at least once, seeded choice) and close."""
+        f = self.f
+        data = read_tracks_file(f)
+        T, N = len(data["world_from_camera"]), len(data["label"])
+        first = np.full(N, -1, dtype=np.int64)
+        for t in range(T - 1, -1, -1):
+            first[data["index"][data["offsets"][t]:data["offsets"][t + 1]]] = t
+        candidates = np.flatnonzero(first >= 0)
+        rng = np.random.default_rng(self.seed)
+        ids = np.sort(rng.choice(candidates, size=min(self.queries, len(candidates)), replace=False)) if len(candidates) else np.zeros(0, int)
+        tracks, occluded, tracks_3d = np.zeros((len(ids), T, 2)), np.ones((len(ids), T), bool), np.zeros((len(ids), T, 3))
+        for t in range(T):
+            pos = world_positions(data, t, ids)
+            tracks[:, t], _ = project(pos, data["world_from_camera"][t], data["K"])
+            tracks_3d[:, t] = pos
+            vis_t = data["index"][data["offsets"][t]:data["offsets"][t + 1]]
+            occluded[:, t] = ~np.isin(ids, vis_t)
+        q_t = first[ids]
+        q_xy = tracks[np.arange(len(ids)), q_t]
+        g = f.create_group("tapvid")
+        g.attrs["conventions"] = "TAP-Vid: query_points (t, y, x); tracks (x, y) pixels; occluded True = not visible"
+        g["point_ids"] = ids.astype(np.int32)
+        g["query_points"] = np.column_stack([q_t, q_xy[:, 1], q_xy[:, 0]]).astype(np.float32)
+        g["tracks"] = tracks.astype(np.float32)
+        g["occluded"] = occluded
+        g["tracks_3d"] = tracks_3d.astype(np.float32)
+        f.close()
+        return self.path
+
+
+def world_positions(data: dict, t: int, ids: np.ndarray) -> np.ndarray:
+    """World positions (n, 3) of points ``ids`` at frame t (dynamic ones moved by their object)."""
+    local = data["local"][ids]
+    obj = data["dynamic_object"][ids]
+    out = local.copy()
+    for d in np.unique(obj[obj >= 0]):
+        m = data["world_from_object"][t, d]
+        sel = obj == d
+        out[sel] = local[sel] @ m[:3, :3].T + m[:3, 3]
+    return out
+
+
+def read_tracks_file(f: h5py.File) -> dict:
+    return {"K": f["cameras/K"][()], "world_from_camera": f["cameras/world_from_camera"][()],
+            "timestamps": f["cameras/timestamps"][()], "local": f["points/local"][()], "label": f["points/label"][()],
+            "instance": f["points/instance"][()], "dynamic_object": f["points/dynamic_object"][()],
+            "world_from_object": f["objects/world_from_object"][()], "offsets": f["visibility/offsets"][()],
+            "index": f["visibility/index"][()], "xy": f["visibility/xy"][()], "depth": f["visibility/depth"][()],
+            "coverage": f["coverage"][()]}
+
+
+def read_tracks(path: str | Path) -> dict:
+    """Everything in a tracks.h5 as numpy arrays (plus 'tapvid' and 'labels')."""
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format_version") != FORMAT_VERSION:
+            raise ValueError(f"{path}: tracks format {f.attrs.get('format_version')!r}, this reader reads {FORMAT_VERSION}")
+        data = read_tracks_file(f)
+        data["labels"] = json.loads(f.attrs["labels"])
+        data["dynamic_positions"], data["dynamic_ids"] = f["dynamic/positions"][()], f["dynamic/point_ids"][()]
+        if "tapvid" in f:
+            data["tapvid"] = {k: f["tapvid"][k][()] for k in f["tapvid"]}
+    return data
