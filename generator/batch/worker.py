@@ -16,6 +16,55 @@ def emit(**event) -> None:
     print("@@" + json.dumps(event), flush=True)
 
 
+def fly(sim, traj, out: Path, seed: int) -> tuple[list[float], int]:
+    """Render and track every frame of ``traj`` into ``out``: frames (EXR + PNG), tracks.h5,
+    trajectory.npz, sparse/0 (COLMAP) and coverage.json. Returns (coverage per frame,
+    visible point observations)."""
+    import numpy as np
+
+    from exporters.colmap import write_colmap_model
+    from exporters.frames import FrameWriter, frame_names
+    from exporters.tracks import TrackWriter
+
+    writer = FrameWriter(out, sim.labels)
+    sim.reset_observations()
+    coverage: list[float] = []
+    tracks = 0
+    static = ~sim.dynamic_points_mask
+    observations = []  # per frame: visible static point indices and their pixel positions
+    colors = np.zeros((sim.num_points, 3), dtype=np.uint8)
+    coloured = np.zeros(sim.num_points, dtype=bool)
+    tracks_out = TrackWriter(out / "tracks.h5", sim.point_table(), sim.dynamic_objects, sim.labels, sim.K,
+                             sim.width, sim.height, seed=seed)
+    for i, pose in enumerate(traj.poses):
+        sim.set_frame(1 + i)
+        sim.set_world_from_camera(pose, check_collisions=False)
+        r = sim.render()
+        points, _, visible = sim.compute_point_cloud()
+        writer.write(i, r.rgb, r.depth, r.seg, r.instance)
+        tracks_out.add_frame(float(traj.timestamps[i]), pose, points, visible, sim.dynamic_object_matrices(), sim.coverage)
+        seen = np.flatnonzero(visible & static)
+        uv, _ = sim.project(points[seen])
+        observations.append((seen, uv))
+        new = ~coloured[seen]
+        rgb8 = (np.clip(r.rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)  # the PNG's pixels
+        px = np.minimum(np.floor(uv[new]).astype(int), [sim.width - 1, sim.height - 1])
+        colors[seen[new]] = rgb8[px[:, 1], px[:, 0]]
+        coloured[seen[new]] = True
+        coverage.append(sim.coverage)
+        tracks += int(visible.sum())
+        emit(event="frame")
+    tracks_out.close()
+    traj.save(out / "trajectory.npz")
+    # static points never move, so the last frame's positions are theirs
+    write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses,
+                       [frame_names(i)[1] for i in range(len(traj))], observations, points, colors)
+    (out / "coverage.json").write_text(json.dumps({
+        "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
+        "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
+    return coverage, tracks
+
+
 def run(config: dict, seed: int, folder: Path) -> dict:
     from ..blender import session
 
@@ -23,10 +72,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     session.set_log_path(folder / "blender.log")
     import numpy as np
 
-    from exporters.colmap import write_colmap_model
-    from exporters.frames import FrameWriter, frame_names
     from exporters.manifest import write_manifest
-    from exporters.tracks import TrackWriter
 
     from .. import Simulator
     from ..scene import build_site
@@ -45,41 +91,8 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     summary = {"trajectories": {}}
     for kind in cfg.trajectories:
         traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
-        out = folder / kind
-        writer = FrameWriter(out, sim.labels)
-        sim.reset_observations()
-        coverage = []
-        static = ~sim.dynamic_points_mask
-        observations = []  # per frame: visible static point indices and their pixel positions
-        colors = np.zeros((sim.num_points, 3), dtype=np.uint8)
-        coloured = np.zeros(sim.num_points, dtype=bool)
-        tracks_out = TrackWriter(out / "tracks.h5", sim.point_table(), sim.dynamic_objects, sim.labels, sim.K,
-                                 sim.width, sim.height, seed=seed)
-        for i, pose in enumerate(traj.poses):
-            sim.set_frame(1 + i)
-            sim.set_world_from_camera(pose, check_collisions=False)
-            r = sim.render()
-            points, _, visible = sim.compute_point_cloud()
-            writer.write(i, r.rgb, r.depth, r.seg, r.instance)
-            tracks_out.add_frame(float(traj.timestamps[i]), pose, points, visible, sim.dynamic_object_matrices(), sim.coverage)
-            seen = np.flatnonzero(visible & static)
-            uv, _ = sim.project(points[seen])
-            observations.append((seen, uv))
-            new = ~coloured[seen]
-            rgb8 = (np.clip(r.rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)  # the PNG's pixels
-            px = np.minimum(np.floor(uv[new]).astype(int), [sim.width - 1, sim.height - 1])
-            colors[seen[new]] = rgb8[px[:, 1], px[:, 0]]
-            coloured[seen[new]] = True
-            coverage.append(sim.coverage)
-            tracks += int(visible.sum())
-            emit(event="frame")
-        tracks_out.close()
-        traj.save(out / "trajectory.npz")
-        write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses,
-                           [frame_names(i)[1] for i in range(len(traj))], observations, points, colors)
-        (out / "coverage.json").write_text(json.dumps({
-            "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
-            "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
+        coverage, visible_tracks = fly(sim, traj, folder / kind, seed)
+        tracks += visible_tracks
         summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
     (folder / "labels.json").write_text(json.dumps(sim.labels))
     summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
