@@ -1,1 +1,6 @@
-"""On-disk formats: each format's schema lives here once, shared by its writer and reader."""
+"""On-disk formats: each format's schema lives here once, shared by its writer and reader.
+
+``FORMAT_VERSION`` versions the whole seed folder (docs/format.md); every HDF5 file and the
+manifest carry it."""
+
+FORMAT_VERSION = "0.3"

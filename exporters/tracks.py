@@ -27,7 +27,8 @@ import numpy as np
 
 from generator.geometry.camera import project
 
-FORMAT_VERSION = "0.2"
+from . import FORMAT_VERSION
+
 _CHUNK = 1 << 16
 
 

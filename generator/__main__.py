@@ -85,6 +85,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="trajectory kind, repeatable (default: orbit and spline)")
     p.add_argument("--points-density", type=_positive_float, default=DEFAULTS.points_density,
                    help=f"surface points per square metre for tracking and coverage (default: {DEFAULTS.points_density})")
+    p.add_argument("--scoring-density", type=_positive_float, default=DEFAULTS.scoring_density,
+                   help=f"points per square metre of the ground-truth cloud for scoring (default: {DEFAULTS.scoring_density:g})")
+    p.add_argument("--colmap-text", action="store_true", help="also write the COLMAP models as text (.txt)")
     p.add_argument("--workers", type=_int_at_least(1, "workers"), default=1,
                    help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
     p.add_argument("--shard", type=_shard, default=(0, 1),
@@ -99,7 +102,8 @@ def parse_args(argv=None) -> argparse.Namespace:
 def main(argv=None) -> int:
     args = parse_args(argv)
     cfg = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
-                    tuple(args.trajectories or DEFAULTS.trajectories), args.points_density, DEFAULTS.max_depth)
+                    tuple(args.trajectories or DEFAULTS.trajectories), args.points_density, DEFAULTS.max_depth,
+                    args.scoring_density, args.colmap_text)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
         probe = args.out / f".write-test-{os.getpid()}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from .blender.extract import assign_pass_indices, dynamic_matrices, extract_part
 from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
+from .geometry.parts import MeshPart
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -150,6 +152,31 @@ class Simulator:
             dyn_index[i] = k
         return {"local": self._points.local.copy(), "labels": self._points.labels.copy(),
                 "instance": self._points.part.copy(), "dynamic_object": dyn_index[self._points.part]}
+
+    def scene_parts(self) -> list[MeshPart]:
+        """Copies of the scene's rigid parts (static in world coordinates, dynamic in their
+        object frame with the current frame's matrix), in ``object_names`` order."""
+        return [replace(p, vertices=p.vertices.copy(), faces=p.faces.copy(), matrix=p.matrix.copy()) for p in self._parts]
+
+    def surface_sample(self) -> dict:
+        """The surface points as the visibility rules need them: ``local`` (N, 3) and
+        ``local_normals`` (N, 3) (outward unit normals on closed parts, zero elsewhere) in
+        the part's frame, ``part`` (N,) int32 index into ``object_names``, ``labels`` (N,)."""
+        pts = self._points
+        return {"local": pts.local.copy(), "local_normals": pts.local_normals.copy(), "part": pts.part.copy(),
+                "labels": np.array(pts.labels)}
+
+    @property
+    def frame_range(self) -> tuple[int, int]:
+        """First and last frame of the scene's animation (inclusive)."""
+        scene = session.bpy.context.scene
+        return int(scene.frame_start), int(scene.frame_end)
+
+    @property
+    def fps(self) -> float:
+        """Animation frames per second."""
+        r = session.bpy.context.scene.render
+        return float(r.fps) / float(r.fps_base)
 
     def dynamic_object_matrices(self) -> np.ndarray:
         """(D, 4, 4) world_from_object of the ``dynamic_objects`` at the current frame."""

@@ -8,3 +8,28 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 os.environ.setdefault("BUILDEE_BLENDER_LOG", str(Path(os.environ.get("TMPDIR", "/tmp")) / f"buildee-tests-{os.getpid()}.log"))
+
+import subprocess  # noqa: E402
+
+import pytest  # noqa: E402
+
+# the batch job's tiniest useful configuration (a small site, 3 frames of 48x32 pixels)
+TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--points-density", "0.3",
+        "--scoring-density", "5"]
+
+
+def run_generator(out, *args, env_extra=None, **kw) -> subprocess.CompletedProcess:
+    """``python -m generator --out OUT <TINY> *args`` in a real process."""
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | (env_extra or {})
+    return subprocess.run([sys.executable, "-m", "generator", "--out", str(out), *TINY, *args],
+                          capture_output=True, text=True, cwd=ROOT, env=env, **kw)
+
+
+@pytest.fixture(scope="session")
+def finished(tmp_path_factory):
+    """(output folder, completed process) of one tiny run of seed 4, written by the real pipeline;
+    shared by the tests of the exports, the evaluation and the loaders."""
+    out = tmp_path_factory.mktemp("batch")
+    r = run_generator(out, "--seeds", "4", "--colmap-text")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return out, r

@@ -14,24 +14,9 @@ from PIL import Image
 
 from exporters.exr import read_frame_exr
 from exporters.manifest import read_manifest, verify_manifest
+from conftest import ROOT, TINY
+from conftest import run_generator as run
 from trajectories import Trajectory
-
-ROOT = Path(__file__).resolve().parents[1]
-TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--points-density", "0.3"]
-
-
-def run(out, *args, env_extra=None, **kw):
-    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | (env_extra or {})
-    return subprocess.run([sys.executable, "-m", "generator", "--out", str(out), *TINY, *args],
-                          capture_output=True, text=True, cwd=ROOT, env=env, **kw)
-
-
-@pytest.fixture(scope="module")
-def finished(tmp_path_factory):
-    out = tmp_path_factory.mktemp("batch")
-    r = run(out, "--seeds", "4")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return out, r
 
 
 def test_seed_folder_is_complete_and_matches_its_manifest(finished):
@@ -133,14 +118,14 @@ def _check_tracks(folder, traj):
 def test_rerun_skips_finished_seeds(finished):
     out, _ = finished
     before = (out / "seed_000004" / "manifest.json").stat().st_mtime_ns
-    r = run(out, "--seeds", "4")
+    r = run(out, "--seeds", "4", "--colmap-text")
     assert r.returncode == 0 and "seed 4: already complete, skipped" in r.stdout
     assert (out / "seed_000004" / "manifest.json").stat().st_mtime_ns == before
 
 
 def test_same_seed_gives_identical_arrays(finished, tmp_path):
     out, _ = finished
-    r = run(tmp_path, "--seeds", "4")
+    r = run(tmp_path, "--seeds", "4", "--colmap-text")
     assert r.returncode == 0
     a, b = read_manifest(out / "seed_000004")["files"], read_manifest(tmp_path / "seed_000004")["files"]
     assert a.keys() == b.keys()

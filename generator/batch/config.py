@@ -14,7 +14,8 @@ class RunConfig:
     """scene_preset: site preset; render_preset: render quality; resolution: (W, H) pixels;
     frames: frames per trajectory (scene animation at 10 fps); trajectories: kinds to fly;
     points_density: surface points per square metre; max_depth: visibility limit in metres
-    (planar depth)."""
+    (planar depth); scoring_density: points per square metre of the ground-truth cloud
+    (ground_truth/points.ply); colmap_text: also write the COLMAP model as text."""
 
     scene_preset: str = "medium"
     render_preset: str = "preview"
@@ -23,6 +24,8 @@ class RunConfig:
     trajectories: tuple[str, ...] = ("orbit", "spline")
     points_density: float = 2.0
     max_depth: float = 60.0
+    scoring_density: float = 100.0
+    colmap_text: bool = False
 
     def to_dict(self) -> dict:
         d = asdict(self)

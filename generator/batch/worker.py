@@ -16,14 +16,20 @@ def emit(**event) -> None:
     print("@@" + json.dumps(event), flush=True)
 
 
-def fly(sim, traj, out: Path, seed: int) -> tuple[list[float], int]:
-    """Render and track every frame of ``traj`` into ``out``: frames (EXR + PNG), tracks.h5,
-    trajectory.npz, sparse/0 (COLMAP) and coverage.json. Returns (coverage per frame,
-    visible point observations)."""
+PREVIEW_FRAMES = 6  # rows of each trajectory's contact sheet
+
+
+def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False) -> tuple[list[float], int]:
+    """Render and track every frame of ``traj`` into ``out``: frames (EXR + PNG + depth PNG),
+    tracks.h5, trajectory.npz, sparse/0 (COLMAP), transforms.json, coverage.json and the
+    previews (contact_sheet.png; map.png when the site ``plan`` is given). Returns
+    (coverage per frame, visible point observations)."""
     import numpy as np
 
     from exporters.colmap import write_colmap_model
     from exporters.frames import FrameWriter, frame_names
+    from exporters.nerfstudio import depth_png_name, write_depth_png, write_transforms
+    from exporters.previews import contact_sheet
     from exporters.tracks import TrackWriter
 
     writer = FrameWriter(out, sim.labels)
@@ -36,12 +42,17 @@ def fly(sim, traj, out: Path, seed: int) -> tuple[list[float], int]:
     coloured = np.zeros(sim.num_points, dtype=bool)
     tracks_out = TrackWriter(out / "tracks.h5", sim.point_table(), sim.dynamic_objects, sim.labels, sim.K,
                              sim.width, sim.height, seed=seed)
+    sheet_frames = set(np.linspace(0, len(traj) - 1, min(PREVIEW_FRAMES, len(traj))).round().astype(int).tolist())
+    sheet = []
     for i, pose in enumerate(traj.poses):
         sim.set_frame(1 + i)
         sim.set_world_from_camera(pose, check_collisions=False)
         r = sim.render()
         points, _, visible = sim.compute_point_cloud()
         writer.write(i, r.rgb, r.depth, r.seg, r.instance)
+        write_depth_png(out / depth_png_name(i), r.depth)
+        if i in sheet_frames:
+            sheet.append({"index": i, "rgb": r.rgb, "depth": r.depth, "label": r.seg})
         tracks_out.add_frame(float(traj.timestamps[i]), pose, points, visible, sim.dynamic_object_matrices(), sim.coverage)
         seen = np.flatnonzero(visible & static)
         uv, _ = sim.project(points[seen])
@@ -56,13 +67,39 @@ def fly(sim, traj, out: Path, seed: int) -> tuple[list[float], int]:
         emit(event="frame")
     tracks_out.close()
     traj.save(out / "trajectory.npz")
+    names = [frame_names(i)[1] for i in range(len(traj))]
     # static points never move, so the last frame's positions are theirs
-    write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses,
-                       [frame_names(i)[1] for i in range(len(traj))], observations, points, colors)
+    write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses, names, observations, points,
+                       colors, text=colmap_text)
+    write_transforms(out / "transforms.json", sim.K, sim.width, sim.height, traj.poses, names,
+                     [depth_png_name(i) for i in range(len(traj))], traj.timestamps)
     (out / "coverage.json").write_text(json.dumps({
         "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
         "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
+    contact_sheet(out / "contact_sheet.png", sheet, sim.labels)
+    if plan is not None:
+        from ..scene.site_map import draw_map
+
+        draw_map(plan, out / "map.png", trajectory=traj.poses[:, :3, 3])
     return coverage, tracks
+
+
+def write_scene_ground_truth(sim, folder: Path, seed: int, scoring_density: float) -> None:
+    """ground_truth/: scoring cloud, labelled mesh and scene.h5 (every animation frame's matrices)."""
+    import numpy as np
+
+    from exporters.ground_truth import write_ground_truth
+
+    first, last = sim.frame_range
+    frames = np.arange(first, last + 1)
+    matrices = []
+    for f in frames:
+        sim.set_frame(int(f))
+        matrices.append(sim.dynamic_object_matrices())
+    sim.set_frame(first)
+    write_ground_truth(folder / "ground_truth", sim.scene_parts(), sim.labels, sim.surface_sample(), frames,
+                       np.stack(matrices), sim.fps, sim.K, sim.width, sim.height, sim.clip_start,
+                       min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density)
 
 
 def run(config: dict, seed: int, folder: Path) -> dict:
@@ -75,7 +112,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     from exporters.manifest import write_manifest
 
     from .. import Simulator
-    from ..scene import build_site
+    from ..scene import build_site, plan_site, site_params
     from .config import RunConfig, plan_trajectory
 
     cfg = RunConfig.from_dict(config)
@@ -85,19 +122,23 @@ def run(config: dict, seed: int, folder: Path) -> dict:
                     render_preset=cfg.render_preset)
     sim.configure_render(resolution=cfg.resolution)
     start = sim.respawn_camera()
+    plan = plan_site(seed, site_params(cfg.scene_preset, frames=max(250, cfg.frames)))
     emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
     fps = 10.0
     tracks = 0
     summary = {"trajectories": {}}
     for kind in cfg.trajectories:
         traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
-        coverage, visible_tracks = fly(sim, traj, folder / kind, seed)
+        coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text)
         tracks += visible_tracks
         summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
+    write_scene_ground_truth(sim, folder, seed, cfg.scoring_density)
     (folder / "labels.json").write_text(json.dumps(sim.labels))
     summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
-    write_manifest(folder, {"seed": seed, "config": cfg.to_dict(), "versions": versions, "summary": summary,
+    from exporters import FORMAT_VERSION
+
+    write_manifest(folder, {"format_version": FORMAT_VERSION, "seed": seed, "config": cfg.to_dict(), "versions": versions, "summary": summary,
                             "timing": {"seconds": time.perf_counter() - t0}})
     return summary
 

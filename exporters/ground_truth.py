@@ -1,0 +1,220 @@
+"""Ground truth for offline scoring, in a seed's ``ground_truth/`` folder; read with no bpy.
+
+- ``points.ply``: the labelled surface point cloud for scoring reconstructions, sampled
+  uniformly on every surface at ``scoring_density`` points per square metre, objects placed
+  as at the scene's first frame. Binary PLY, vertex properties x, y, z (float32, world
+  metres), red, green, blue (uchar, the label's colour), label (int, id into the label
+  table), instance (int, id into the object table), dynamic (uchar, 1 on moving objects).
+- ``mesh.ply``: the scene's triangles at the first frame, world coordinates (float32),
+  vertex colours by label; face properties label and instance.
+- ``scene.h5``: everything needed to recompute visibility for any pose and frame: every
+  rigid part in its own frame (static parts in world coordinates), the matrices of the
+  dynamic parts at every frame of the animation, the simulator's surface points (with the
+  normals the visibility rules use), the camera and view limits of the generator.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from generator.geometry.parts import MeshPart
+from generator.geometry.sampling import sample_triangles
+from generator.geometry.seeding import stream
+
+from . import FORMAT_VERSION
+from .palette import label_colors
+from .ply import PlyData, read_ply, write_ply
+
+FILES = ("points.ply", "mesh.ply", "scene.h5")
+DEFAULT_SCORING_DENSITY = 100.0  # points per square metre: mean spacing ~0.1 m, mean NN distance ~0.05 m
+
+
+def _place(part: MeshPart, matrix: np.ndarray, local: np.ndarray) -> np.ndarray:
+    return local @ matrix[:3, :3].T + matrix[:3, 3] if part.dynamic else local
+
+
+def sample_scoring_points(parts: list[MeshPart], label_ids: dict[str, int], density: float, seed: int) -> dict:
+    """Uniform samples on every part at ``density`` points/m^2 at the parts' current matrices:
+    ``xyz`` (N, 3) float64 world metres, ``label``, ``instance`` (N,) int32, ``dynamic`` (N,) bool.
+    Seeded per part name, so adding a part does not move the samples of the others."""
+    xyz, label, instance, dynamic = [], [], [], []
+    for i, p in enumerate(parts):
+        pts, _ = sample_triangles(p.vertices, p.faces, density, stream(seed, "scoring-points", p.name))
+        xyz.append(_place(p, p.matrix, pts))
+        label.append(np.full(len(pts), label_ids[p.label], np.int32))
+        instance.append(np.full(len(pts), i, np.int32))
+        dynamic.append(np.full(len(pts), p.dynamic, bool))
+    return {"xyz": np.concatenate(xyz), "label": np.concatenate(label), "instance": np.concatenate(instance),
+            "dynamic": np.concatenate(dynamic)}
+
+
+def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[str], surface: dict,
+                       frames: np.ndarray, matrices: np.ndarray, fps: float, K: np.ndarray, width: int, height: int,
+                       near: float, far: float, points_density: float, seed: int,
+                       scoring_density: float = DEFAULT_SCORING_DENSITY) -> Path:
+    """Write points.ply, mesh.ply and scene.h5 into ``folder``.
+
+    ``parts`` as the Simulator holds them (``Simulator.scene_parts()``, matrices of the first
+    frame); ``surface`` from ``Simulator.surface_sample()``; ``frames`` (F,) animation frame
+    numbers and ``matrices`` (F, D, 4, 4) world_from_object of the D dynamic parts (in part
+    order) at those frames; ``near``/``far`` the visibility depth limits (planar, metres).
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    label_ids = {name: i for i, name in enumerate(labels)}
+    dyn = [i for i, p in enumerate(parts) if p.dynamic]
+    frames = np.asarray(frames, np.int64)
+    matrices = np.asarray(matrices, np.float64).reshape(len(frames), len(dyn), 4, 4)
+    first = [p.matrix if not p.dynamic else matrices[0, dyn.index(i)] for i, p in enumerate(parts)]
+    colors = label_colors(labels)
+    comments = [f"buildee ground truth format {FORMAT_VERSION}", "units metres, world frame Z up",
+                f"labels {json.dumps(labels)}"]
+
+    pts = sample_scoring_points([p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)],
+                                label_ids, scoring_density, seed)
+    c = colors[pts["label"]]
+    write_ply(folder / "points.ply", {
+        "x": pts["xyz"][:, 0].astype(np.float32), "y": pts["xyz"][:, 1].astype(np.float32),
+        "z": pts["xyz"][:, 2].astype(np.float32), "red": c[:, 0], "green": c[:, 1], "blue": c[:, 2],
+        "label": pts["label"], "instance": pts["instance"], "dynamic": pts["dynamic"].astype(np.uint8)},
+        comments=comments + [f"scoring_density {scoring_density} points per square metre", f"seed {seed}"])
+
+    verts, faces, vlabel, flabel, finst, offset = [], [], [], [], [], 0
+    for i, (p, m) in enumerate(zip(parts, first)):
+        verts.append(_place(p, m, p.vertices))
+        faces.append(p.faces + offset)
+        offset += len(p.vertices)
+        vlabel.append(np.full(len(p.vertices), label_ids[p.label], np.int32))
+        flabel.append(np.full(len(p.faces), label_ids[p.label], np.int32))
+        finst.append(np.full(len(p.faces), i, np.int32))
+    v = np.concatenate(verts).astype(np.float32)
+    vc = colors[np.concatenate(vlabel)]
+    write_ply(folder / "mesh.ply", {"x": v[:, 0], "y": v[:, 1], "z": v[:, 2], "red": vc[:, 0], "green": vc[:, 1],
+                                    "blue": vc[:, 2]},
+              faces=np.concatenate(faces), face={"label": np.concatenate(flabel), "instance": np.concatenate(finst)},
+              comments=comments + ["objects at the first animation frame"])
+
+    with h5py.File(folder / "scene.h5", "w") as f:
+        f.attrs.update({"format_version": FORMAT_VERSION, "labels": json.dumps(labels), "fps": float(fps),
+                        "seed": int(seed), "points_density": float(points_density),
+                        "scoring_density": float(scoring_density),
+                        "conventions": "metres; world Z up; static parts in world coordinates, dynamic parts in "
+                                       "their object frame; matrices world_from_object; camera OpenCV; "
+                                       "near < planar depth <= far"})
+        g = f.create_group("parts")
+        kw = {"compression": "gzip", "compression_opts": 4}
+        g.create_dataset("vertices", data=np.concatenate([p.vertices for p in parts]).astype(np.float64), **kw)
+        g.create_dataset("faces", data=np.concatenate([p.faces for p in parts]).astype(np.int32), **kw)
+        g["vertex_offsets"] = np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64)
+        g["face_offsets"] = np.cumsum([0] + [len(p.faces) for p in parts]).astype(np.int64)
+        g["name"] = np.array([p.name for p in parts], dtype=h5py.string_dtype())
+        g["source"] = np.array([p.source for p in parts], dtype=h5py.string_dtype())
+        g["label"] = np.array([label_ids[p.label] for p in parts], np.int32)
+        g["dynamic"] = np.array([p.dynamic for p in parts], bool)
+        g["closed"] = np.array([p.closed for p in parts], bool)
+        g["outward"] = np.array([p.outward for p in parts], np.int8)
+        a = f.create_group("animation")
+        a["frames"] = frames
+        a["dynamic_parts"] = np.asarray(dyn, np.int32)
+        a.create_dataset("world_from_object", data=matrices, **kw)
+        s = f.create_group("surface_points")
+        s.attrs["density"] = float(points_density)
+        for key in ("local", "local_normals"):
+            s.create_dataset(key, data=np.asarray(surface[key], np.float64), **kw)
+        s.create_dataset("part", data=np.asarray(surface["part"], np.int32), **kw)
+        s.create_dataset("label", data=np.asarray(surface["labels"], np.int32), **kw)
+        cam = f.create_group("camera")
+        cam["K"] = np.asarray(K, np.float64)
+        cam.attrs.update({"width": int(width), "height": int(height), "near": float(near), "far": float(far)})
+    return folder
+
+
+def _with_matrix(part: MeshPart, matrix: np.ndarray) -> MeshPart:
+    return replace(part, matrix=np.asarray(matrix, np.float64))
+
+
+class GroundTruthError(ValueError):
+    """A ground-truth folder or file that cannot be used (the message says why)."""
+
+
+@dataclass
+class GroundTruthScene:
+    """A scene's ground truth read from ``scene.h5`` (see the module docstring).
+
+    ``parts``: rigid parts with matrices of the first frame; ``frames`` (F,) animation frame
+    numbers; ``matrices`` (F, D, 4, 4) of the dynamic parts ``dynamic_parts`` (D,);
+    ``surface``: local, local_normals, part, label; camera ``K``, ``width``, ``height`` and
+    visibility limits ``near``, ``far`` (metres); ``fps``; ``labels``.
+    """
+
+    folder: Path
+    labels: list[str]
+    parts: list[MeshPart]
+    frames: np.ndarray
+    dynamic_parts: np.ndarray
+    matrices: np.ndarray
+    surface: dict
+    K: np.ndarray
+    width: int
+    height: int
+    near: float
+    far: float
+    fps: float
+    seed: int
+
+    def frame_index(self, frame: int) -> int:
+        """Row of ``matrices`` for an animation frame (frames outside the range clamp to its ends)."""
+        return int(np.clip(int(frame) - int(self.frames[0]), 0, len(self.frames) - 1))
+
+    def matrices_at(self, frame: int) -> dict[int, np.ndarray]:
+        """world_from_object of each dynamic part at ``frame``, keyed by part index."""
+        row = self.matrices[self.frame_index(frame)]
+        return {int(i): row[k] for k, i in enumerate(self.dynamic_parts)}
+
+    def scoring_points(self) -> PlyData:
+        """The labelled scoring cloud (points.ply)."""
+        return read_ply(self.folder / "points.ply")
+
+
+def read_ground_truth(folder: str | Path) -> GroundTruthScene:
+    """Read ``folder/scene.h5`` (a seed folder or its ground_truth/ folder)."""
+    folder = Path(folder)
+    if (folder / "ground_truth").is_dir():
+        folder = folder / "ground_truth"
+    missing = [name for name in FILES if not (folder / name).is_file()]
+    if missing:
+        raise GroundTruthError(f"{folder}: incomplete ground truth, missing {', '.join(missing)} "
+                               f"(regenerate the seed with python -m generator)")
+    try:
+        with h5py.File(folder / "scene.h5", "r") as f:
+            version = f.attrs.get("format_version")
+            if version != FORMAT_VERSION:
+                raise GroundTruthError(f"{folder / 'scene.h5'}: ground-truth format {version!r}, this reader reads {FORMAT_VERSION}")
+            g = f["parts"]
+            V, F = g["vertices"][()], g["faces"][()]
+            vo, fo = g["vertex_offsets"][()], g["face_offsets"][()]
+            names = [n.decode() if isinstance(n, bytes) else n for n in g["name"][()]]
+            sources = [n.decode() if isinstance(n, bytes) else n for n in g["source"][()]]
+            labels = json.loads(f.attrs["labels"])
+            a, s, cam = f["animation"], f["surface_points"], f["camera"]
+            frames, dyn, mats = a["frames"][()], a["dynamic_parts"][()], a["world_from_object"][()]
+            parts = []
+            for i, name in enumerate(names):
+                m = np.eye(4)
+                if g["dynamic"][i]:
+                    m = mats[0, int(np.flatnonzero(dyn == i)[0])]
+                parts.append(MeshPart(name=name, label=labels[int(g["label"][i])], vertices=V[vo[i]:vo[i + 1]],
+                                      faces=F[fo[i]:fo[i + 1]].astype(np.int64), dynamic=bool(g["dynamic"][i]),
+                                      matrix=m.copy(), closed=bool(g["closed"][i]), outward=int(g["outward"][i]),
+                                      source=sources[i]))
+            surface = {k: s[k][()] for k in ("local", "local_normals", "part", "label")}
+            return GroundTruthScene(folder, labels, parts, frames, dyn, mats, surface, cam["K"][()],
+                                    int(cam.attrs["width"]), int(cam.attrs["height"]), float(cam.attrs["near"]),
+                                    float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]))
+    except (OSError, KeyError) as exc:
+        raise GroundTruthError(f"{folder / 'scene.h5'}: unreadable ground truth ({exc.__class__.__name__}: {exc})") from exc

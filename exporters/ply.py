@@ -1,0 +1,275 @@
+"""PLY files: point clouds and triangle meshes with extra per-vertex and per-face properties.
+
+Written binary little-endian (open3d, MeshLab, CloudCompare read them); read back from
+binary (either byte order) and ASCII files. Faces are triangles stored as a
+``vertex_indices`` list with a ``uchar`` count. Every problem with a file raises
+:class:`PlyError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+_TYPES = {  # PLY type name -> numpy type code (without byte order)
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int", "u4": "uint", "f4": "float", "f8": "double"}
+
+
+class PlyError(ValueError):
+    """A PLY file that cannot be read (the message says why)."""
+
+
+@dataclass
+class PlyData:
+    """``vertex``: property name -> (N,) array; ``faces`` (F, 3) int64 or None;
+    ``face``: extra face property name -> (F,) array; ``comments``: header comments."""
+
+    vertex: dict[str, np.ndarray]
+    faces: np.ndarray | None = None
+    face: dict[str, np.ndarray] = field(default_factory=dict)
+    comments: list[str] = field(default_factory=list)
+
+    @property
+    def points(self) -> np.ndarray:
+        """(N, 3) float64 x, y, z."""
+        return np.stack([self.vertex[c].astype(np.float64) for c in "xyz"], axis=1)
+
+
+def _type_name(array: np.ndarray) -> str:
+    code = np.asarray(array).dtype.str[1:]
+    if code == "b1":
+        return "uchar"
+    if code not in _NAMES:
+        raise TypeError(f"PLY cannot store dtype {np.asarray(array).dtype}")
+    return _NAMES[code]
+
+
+def write_ply(path: str | Path, vertex: dict[str, np.ndarray], faces: np.ndarray | None = None,
+              face: dict[str, np.ndarray] | None = None, comments: list[str] | tuple[str, ...] = ()) -> Path:
+    """Write a binary little-endian PLY. ``vertex`` maps property names to (N,) arrays (their
+    dtypes are kept; put x, y, z first); ``faces`` (F, 3) vertex indices; ``face`` extra
+    (F,) face properties."""
+    path = Path(path)
+    names = list(vertex)
+    n = len(vertex[names[0]]) if names else 0
+    if any(len(np.asarray(v)) != n for v in vertex.values()):
+        raise ValueError("all vertex properties must have the same length")
+    header = ["ply", "format binary_little_endian 1.0", *(f"comment {c}" for c in comments), f"element vertex {n}"]
+    header += [f"property {_type_name(vertex[k])} {k}" for k in names]
+    vdtype = np.dtype([(k, "<" + np.dtype(_TYPES[_type_name(vertex[k])]).str[1:]) for k in names])
+    vrec = np.empty(n, dtype=vdtype)
+    for k in names:
+        vrec[k] = vertex[k]
+    frec = None
+    if faces is not None:
+        faces = np.asarray(faces)
+        face = face or {}
+        header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+        header += [f"property {_type_name(face[k])} {k}" for k in face]
+        fdtype = np.dtype([("n", "u1"), ("idx", "<i4", (3,))] + [(k, "<" + np.dtype(_TYPES[_type_name(face[k])]).str[1:]) for k in face])
+        frec = np.empty(len(faces), dtype=fdtype)
+        frec["n"], frec["idx"] = 3, faces
+        for k in face:
+            frec[k] = face[k]
+    header.append("end_header")
+    with open(path, "wb") as f:
+        f.write(("\n".join(header) + "\n").encode("ascii"))
+        f.write(vrec.tobytes())
+        if frec is not None:
+            f.write(frec.tobytes())
+    return path
+
+
+@dataclass
+class _Element:
+    name: str
+    count: int
+    props: list[tuple[str, str, str | None]]  # (name, type code, list count type code or None)
+
+
+def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
+    if f.readline().strip() != b"ply":
+        raise PlyError(f"{path}: not a PLY file (it does not start with 'ply')")
+    fmt, elements, comments = None, [], []
+    while True:
+        line = f.readline()
+        if not line:
+            raise PlyError(f"{path}: truncated PLY header (no end_header)")
+        words = line.decode("ascii", errors="replace").split()
+        if not words or words[0] in ("obj_info",):
+            continue
+        if words[0] == "end_header":
+            break
+        try:
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "comment":
+                comments.append(line.decode("ascii", errors="replace").strip()[8:])
+            elif words[0] == "element":
+                elements.append(_Element(words[1], int(words[2]), []))
+            elif words[0] == "property" and words[1] == "list":
+                elements[-1].props.append((words[4], _TYPES[words[3]], _TYPES[words[2]]))
+            elif words[0] == "property":
+                elements[-1].props.append((words[2], _TYPES[words[1]], None))
+            else:
+                raise PlyError(f"{path}: unexpected PLY header line {line.strip()!r}")
+        except (IndexError, KeyError, ValueError) as exc:
+            raise PlyError(f"{path}: bad PLY header line {line.strip()!r}") from exc
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise PlyError(f"{path}: unknown PLY format {fmt!r}")
+    return fmt, elements, comments
+
+
+def read_ply(path: str | Path) -> PlyData:
+    """Read a PLY point cloud or triangle mesh (ASCII or binary). Polygons with more than
+    three corners are split into triangle fans; face properties repeat for each triangle."""
+    path = Path(path)
+    if not path.is_file():
+        raise PlyError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        fmt, elements, comments = _parse_header(f, path)
+        body = f.read()
+    data: dict[str, dict[str, np.ndarray]] = {}
+    if fmt == "ascii":
+        _read_ascii(body, elements, data, path)
+    else:
+        _read_binary(body, elements, data, "<" if fmt == "binary_little_endian" else ">", path)
+    if "vertex" not in data:
+        raise PlyError(f"{path}: no vertex element")
+    vertex = data["vertex"]
+    if not all(c in vertex for c in "xyz"):
+        raise PlyError(f"{path}: vertices need x, y and z properties")
+    faces, face = None, {}
+    if "face" in data:
+        face = data["face"]
+        lists = face.pop("vertex_indices", face.pop("vertex_index", None))
+        if lists is not None:
+            faces, repeat = _triangulate(lists, path)
+            face = {k: np.repeat(v, repeat) for k, v in face.items()}
+            if len(faces) and (faces.min() < 0 or faces.max() >= len(vertex["x"])):
+                raise PlyError(f"{path}: a face refers to a vertex that does not exist")
+    return PlyData(vertex, faces, face, comments)
+
+
+def _triangulate(lists, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(lists, np.ndarray) and lists.ndim == 2:
+        if lists.shape[1] < 3:
+            raise PlyError(f"{path}: faces need at least 3 vertices")
+        k = lists.shape[1]
+        fans = [lists[:, [0, j, j + 1]] for j in range(1, k - 1)]
+        return np.stack(fans, axis=1).reshape(-1, 3).astype(np.int64), np.full(len(lists), k - 2)
+    tris, repeat = [], []
+    for poly in lists:
+        if len(poly) < 3:
+            raise PlyError(f"{path}: faces need at least 3 vertices")
+        tris.extend((poly[0], poly[j], poly[j + 1]) for j in range(1, len(poly) - 1))
+        repeat.append(len(poly) - 2)
+    return np.asarray(tris, dtype=np.int64).reshape(-1, 3), np.asarray(repeat, dtype=np.int64)
+
+
+def _read_binary(body: bytes, elements: list[_Element], data: dict, order: str, path: Path) -> None:
+    pos = 0
+    for el in elements:
+        if not el.props:
+            continue
+        fixed = all(c is None for _, _, c in el.props)
+        if not fixed and len(el.props) >= 1:
+            # lists: assume every list has the first row's length (true for triangle meshes), verify after
+            dtype_fields, lengths_ok = [], True
+            first = pos
+            for name, code, count_code in el.props:
+                if count_code is None:
+                    first += np.dtype(code).itemsize
+                    continue
+                if first + np.dtype(count_code).itemsize > len(body):
+                    raise PlyError(f"{path}: truncated PLY data in element {el.name!r}")
+                k = int(np.frombuffer(body, dtype=order + count_code, count=1, offset=first)[0]) if el.count else 0
+                break
+            for name, code, count_code in el.props:
+                if count_code is None:
+                    dtype_fields.append((name, order + code))
+                else:
+                    dtype_fields += [(name + "#n", order + count_code), (name, order + code, (k,))]
+            dtype = np.dtype(dtype_fields)
+            end = pos + dtype.itemsize * el.count
+            if end <= len(body):
+                rec = np.frombuffer(body, dtype=dtype, count=el.count, offset=pos)
+                lengths_ok = all(np.all(rec[n + "#n"] == k) for n, _, c in el.props if c is not None)
+            else:
+                lengths_ok = False
+            if lengths_ok:
+                data[el.name] = {n: np.array(rec[n]) for n, _, _ in el.props}
+                pos = end
+                continue
+            pos = _read_binary_lists(body, el, data, order, pos, path)
+            continue
+        dtype = np.dtype([(name, order + code) for name, code, _ in el.props])
+        end = pos + dtype.itemsize * el.count
+        if end > len(body):
+            raise PlyError(f"{path}: truncated PLY data: element {el.name!r} needs {end - pos} bytes, "
+                           f"{max(len(body) - pos, 0)} left")
+        rec = np.frombuffer(body, dtype=dtype, count=el.count, offset=pos)
+        data[el.name] = {n: np.array(rec[n]).astype(rec[n].dtype.newbyteorder("=")) for n, _, _ in el.props}
+        pos = end
+
+
+def _read_binary_lists(body: bytes, el: _Element, data: dict, order: str, pos: int, path: Path) -> int:
+    """Slow path: lists of varying length, row by row."""
+    out = {n: [] for n, _, _ in el.props}
+    try:
+        for _ in range(el.count):
+            for name, code, count_code in el.props:
+                if count_code is None:
+                    v = np.frombuffer(body, dtype=order + code, count=1, offset=pos)[0]
+                    pos += np.dtype(code).itemsize
+                else:
+                    k = int(np.frombuffer(body, dtype=order + count_code, count=1, offset=pos)[0])
+                    pos += np.dtype(count_code).itemsize
+                    v = np.frombuffer(body, dtype=order + code, count=k, offset=pos).astype(np.int64)
+                    pos += k * np.dtype(code).itemsize
+                out[name].append(v)
+    except ValueError as exc:
+        raise PlyError(f"{path}: truncated PLY data in element {el.name!r}") from exc
+    data[el.name] = {n: (v if c is not None else np.array(v)) for (n, _, c), v in zip(el.props, out.values())}
+    return pos
+
+
+def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -> None:
+    lines = body.decode("ascii", errors="replace").splitlines()
+    lines = [ln for ln in lines if ln.strip()]
+    pos = 0
+    for el in elements:
+        rows = lines[pos:pos + el.count]
+        if len(rows) < el.count:
+            raise PlyError(f"{path}: truncated PLY data: element {el.name!r} has {len(rows)} of {el.count} rows")
+        pos += el.count
+        fixed = all(c is None for _, _, c in el.props)
+        try:
+            if fixed:
+                table = np.array([r.split() for r in rows], dtype=np.float64).reshape(el.count, -1) if el.count else np.zeros((0, len(el.props)))
+                if table.shape[1] != len(el.props):
+                    raise PlyError(f"{path}: element {el.name!r} rows have {table.shape[1]} values, expected {len(el.props)}")
+                data[el.name] = {n: table[:, j].astype(code) for j, (n, code, _) in enumerate(el.props)}
+                continue
+            out = {n: [] for n, _, _ in el.props}
+            for r in rows:
+                words, j = r.split(), 0
+                for name, code, count_code in el.props:
+                    if count_code is None:
+                        out[name].append(float(words[j]))
+                        j += 1
+                    else:
+                        k = int(words[j])
+                        out[name].append(np.array(words[j + 1:j + 1 + k], dtype=np.int64))
+                        j += 1 + k
+            data[el.name] = {n: (v if c is not None else np.array(v, dtype=code)) for (n, code, c), v in zip(el.props, out.values())}
+        except (ValueError, IndexError) as exc:
+            if isinstance(exc, PlyError):
+                raise
+            raise PlyError(f"{path}: malformed ASCII PLY row in element {el.name!r}") from exc

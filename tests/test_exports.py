@@ -1,0 +1,182 @@
+"""Exports of the real pipeline read back with other libraries: transforms.json, depth PNGs,
+the ground-truth cloud and mesh (open3d), scene.h5, COLMAP text, previews; and the PLY codec."""
+
+import json
+
+import numpy as np
+import pycolmap
+import pytest
+from PIL import Image
+
+from exact_geometry import closest_point_on_triangles
+from exporters.exr import read_frame_exr
+from exporters.ground_truth import GroundTruthError, read_ground_truth
+from exporters.nerfstudio import read_depth_png
+from exporters.palette import label_colors
+from exporters.ply import PlyError, read_ply, write_ply
+from exporters.tracks import read_tracks
+from generator.geometry.o3d import import_open3d
+
+
+@pytest.fixture(scope="module")
+def seed_folder(finished):
+    return finished[0] / "seed_000004"
+
+
+@pytest.mark.parametrize("kind", ["orbit", "spline"])
+def test_transforms_json_reproduces_the_poses(seed_folder, kind):
+    folder = seed_folder / kind
+    doc = json.loads((folder / "transforms.json").read_text())
+    tracks = read_tracks(folder / "tracks.h5")
+    K = tracks["K"]
+    assert (doc["w"], doc["h"]) == (48, 32)
+    np.testing.assert_allclose([doc["fl_x"], doc["fl_y"], doc["cx"], doc["cy"]], [K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
+    assert len(doc["frames"]) == len(tracks["world_from_camera"]) == 3
+    for t, frame in enumerate(doc["frames"]):
+        c2w_gl = np.array(frame["transform_matrix"])
+        # OpenGL camera: x right, y up, z backward -> flip y and z back to OpenCV
+        np.testing.assert_allclose(c2w_gl @ np.diag([1, -1, -1, 1]), tracks["world_from_camera"][t], atol=1e-12)
+        # the OpenGL camera looks down its -z: the OpenCV optical axis
+        np.testing.assert_allclose(-c2w_gl[:3, 2], tracks["world_from_camera"][t][:3, 2], atol=1e-12)
+        assert (folder / frame["file_path"]).is_file()
+        depth_png = read_depth_png(folder / frame["depth_file_path"])
+        depth_exr = read_frame_exr(folder / f"frame_{t:06d}.exr")["depth"]
+        near = np.isfinite(depth_exr) & (depth_exr < 65.0)
+        assert near.any()
+        assert np.abs(depth_png[near] - depth_exr[near]).max() <= 0.0005 + 1e-6  # millimetre rounding
+        assert np.isinf(depth_png[~np.isfinite(depth_exr)]).all()
+
+
+def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
+    o3d = import_open3d()
+    gt = seed_folder / "ground_truth"
+    ours = read_ply(gt / "points.ply")
+    cloud = o3d.t.io.read_point_cloud(str(gt / "points.ply"))
+    np.testing.assert_array_equal(cloud.point.positions.numpy(), np.stack([ours.vertex[c] for c in "xyz"], 1))
+    np.testing.assert_array_equal(cloud.point.label.numpy().ravel(), ours.vertex["label"])
+    np.testing.assert_array_equal(cloud.point.instance.numpy().ravel(), ours.vertex["instance"])
+    labels = json.loads((seed_folder / "labels.json").read_text())
+    assert set(np.unique(ours.vertex["label"])) <= set(range(len(labels)))
+    # density: scoring_density points per square metre of surface (TINY: 5)
+    scene = read_ground_truth(seed_folder)
+    from generator.geometry.sampling import triangle_areas
+
+    area = sum(triangle_areas(p.vertices, p.faces).sum() for p in scene.parts)
+    assert abs(len(ours.points) / area - 5.0) < 0.1
+    # every point lies on a triangle of its own object, which carries its label (exact float64
+    # distances to every triangle, for a random subset; open3d's float32 queries are off by mm)
+    mesh = read_ply(gt / "mesh.ply")
+    corners = mesh.points[mesh.faces].transpose(1, 0, 2)
+    rng = np.random.default_rng(0)
+    on_own, labels_ok = 0, 0
+    subset = rng.choice(len(ours.points), 300, replace=False)
+    for i in subset:
+        p = np.broadcast_to(ours.points[i], corners[0].shape)
+        d = np.linalg.norm(closest_point_on_triangles(p, *corners) - p, axis=1)
+        hit = np.flatnonzero(d < 1e-5)  # float32 coordinates in the files
+        assert len(hit), f"point {i} is {d.min():.2e} m from the mesh"
+        on_own += bool((mesh.face["instance"][hit] == ours.vertex["instance"][i]).any())
+        labels_ok += bool((mesh.face["label"][hit] == ours.vertex["label"][i]).any())
+    assert on_own == labels_ok == len(subset)
+
+def test_ground_truth_mesh_opens_in_open3d_with_labels(seed_folder):
+    o3d = import_open3d()
+    gt = seed_folder / "ground_truth"
+    ours = read_ply(gt / "mesh.ply")
+    mesh = o3d.io.read_triangle_mesh(str(gt / "mesh.ply"))
+    np.testing.assert_array_equal(np.asarray(mesh.vertices), ours.points)
+    np.testing.assert_array_equal(np.asarray(mesh.triangles), ours.faces)
+    labels = json.loads((seed_folder / "labels.json").read_text())
+    # labels survive open3d through the vertex colours (one distinct colour per class) ...
+    colors = np.round(np.asarray(mesh.vertex_colors) * 255).astype(np.uint8)
+    palette = label_colors(labels)
+    vertex_label = np.array([np.flatnonzero((palette == c).all(1))[0] for c in np.unique(colors, axis=0)])
+    assert len(vertex_label) == len(np.unique(ours.face["label"]))
+    face_colour = colors[ours.faces[:, 0]]
+    np.testing.assert_array_equal(face_colour, palette[ours.face["label"]])
+    # ... and as face properties: they equal the labels of the parts in scene.h5
+    scene = read_ground_truth(seed_folder)
+    part_label = np.repeat([labels.index(p.label) for p in scene.parts], [len(p.faces) for p in scene.parts])
+    np.testing.assert_array_equal(ours.face["label"], part_label)
+    # geometry at the first frame equals the parts placed with their matrices
+    world = np.concatenate([p.world_vertices() for p in scene.parts])
+    np.testing.assert_allclose(ours.points, world, atol=1e-4)
+
+
+def test_scene_h5_matches_the_tracks(seed_folder):
+    scene = read_ground_truth(seed_folder)
+    tracks = read_tracks(seed_folder / "orbit" / "tracks.h5")
+    np.testing.assert_array_equal(scene.surface["local"], tracks["local"])
+    np.testing.assert_array_equal(scene.surface["label"], tracks["label"])
+    np.testing.assert_array_equal(scene.surface["part"], tracks["instance"])
+    assert scene.frames[0] == 1 and len(scene.frames) >= 250 and scene.fps == 10.0
+    np.testing.assert_allclose(scene.K, tracks["K"])
+    assert scene.far == 60.0
+    # frame t of a trajectory is animation frame t + 1: object matrices agree
+    for t in range(3):
+        m = scene.matrices_at(1 + t)
+        for k, i in enumerate(scene.dynamic_parts):
+            np.testing.assert_allclose(m[int(i)], tracks["world_from_object"][t, k], atol=1e-12)
+    assert len(scene.dynamic_parts) == tracks["world_from_object"].shape[1] > 0
+    moved = scene.matrices[:, :, :3, 3].std(axis=0).max()
+    assert moved > 0.1  # something moves during the animation
+
+
+def test_incomplete_ground_truth_is_refused(seed_folder, tmp_path):
+    import shutil
+
+    copy = tmp_path / "gt"
+    shutil.copytree(seed_folder / "ground_truth", copy)
+    (copy / "scene.h5").unlink()
+    with pytest.raises(GroundTruthError, match="missing scene.h5"):
+        read_ground_truth(copy)
+
+
+def test_colmap_text_on_request_and_previews(seed_folder):
+    sparse = seed_folder / "orbit" / "sparse" / "0"
+    assert {"cameras.txt", "images.txt", "points3D.txt", "cameras.bin"} <= {p.name for p in sparse.iterdir()}
+    binary = pycolmap.Reconstruction(str(sparse))
+    text = pycolmap.Reconstruction()
+    text.read_text(str(sparse))
+    assert text.num_points3D() == binary.num_points3D() > 0
+    for pid, p in binary.points3D.items():
+        np.testing.assert_allclose(text.points3D[pid].xyz, p.xyz, atol=1e-9)
+    sheet = np.asarray(Image.open(seed_folder / "orbit" / "contact_sheet.png"))
+    assert sheet.shape[0] >= 3 * 32 and sheet.shape[1] >= 3 * 48  # 3 frames x (RGB, depth, labels)
+    # the label tile of the first row shows the label map in class colours
+    labels = json.loads((seed_folder / "labels.json").read_text())
+    lab = read_frame_exr(seed_folder / "orbit" / "frame_000000.exr")["label"]
+    tile = sheet[14:14 + 32, 4 + 2 * (48 + 4):4 + 2 * (48 + 4) + 48]
+    np.testing.assert_array_equal(tile[lab >= 0], label_colors(labels)[lab[lab >= 0]])
+    assert Image.open(seed_folder / "orbit" / "map.png").size[0] > 100
+
+
+def test_ply_round_trip_ascii_big_endian_and_polygons(tmp_path):
+    rng = np.random.default_rng(1)
+    xyz = rng.normal(size=(50, 3))
+    lab = rng.integers(0, 9, 50).astype(np.int32)
+    write_ply(tmp_path / "a.ply", {"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "label": lab},
+              faces=np.array([[0, 1, 2], [2, 3, 4]]), face={"label": np.array([7, 8], np.int32)})
+    d = read_ply(tmp_path / "a.ply")
+    np.testing.assert_array_equal(d.points, xyz)
+    np.testing.assert_array_equal(d.vertex["label"], lab)
+    np.testing.assert_array_equal(d.faces, [[0, 1, 2], [2, 3, 4]])
+    np.testing.assert_array_equal(d.face["label"], [7, 8])
+    # ASCII with a quad (split into two triangles) and a big-endian binary file
+    rows = "\n".join(f"{a} {b} {c} {l}" for (a, b, c), l in zip(xyz[:5], lab[:5]))
+    (tmp_path / "b.ply").write_text("ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\nproperty double y\n"
+                                    "property double z\nproperty int label\nelement face 1\n"
+                                    "property list uchar int vertex_indices\nend_header\n" + rows + "\n4 0 1 2 3\n")
+    d = read_ply(tmp_path / "b.ply")
+    np.testing.assert_allclose(d.points, xyz[:5])
+    np.testing.assert_array_equal(d.faces, [[0, 1, 2], [0, 2, 3]])
+    header = b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    (tmp_path / "c.ply").write_bytes(header + xyz[:5].astype(">f4").tobytes())
+    np.testing.assert_allclose(read_ply(tmp_path / "c.ply").points, xyz[:5].astype(np.float32))
+    # a truncated file is refused with a one-line message
+    (tmp_path / "d.ply").write_bytes(header + xyz[:4].astype(">f4").tobytes())
+    with pytest.raises(PlyError, match="truncated"):
+        read_ply(tmp_path / "d.ply")
+    (tmp_path / "e.ply").write_bytes(b"solid cube\n")
+    with pytest.raises(PlyError, match="not a PLY file"):
+        read_ply(tmp_path / "e.ply")
