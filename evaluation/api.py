@@ -1,0 +1,193 @@
+"""The evaluation's Python API: the same functions ``python -m evaluation`` runs, on files
+or on arrays (for a training loop)."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from exporters.ground_truth import GroundTruthError, read_ground_truth
+from exporters.manifest import read_manifest
+
+from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
+from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
+from .metrics import DEFAULT_SWEEP, DEFAULT_TAU, match_categories, nearest, reconstruction_metrics, voxel_downsample
+
+
+def versions() -> dict:
+    import scipy
+
+    from exporters import FORMAT_VERSION
+
+    try:
+        from importlib.metadata import version
+
+        ours = version("buildee-sites")
+    except Exception:  # not installed (running from a checkout)
+        ours = "unknown"
+    return {"buildee-sites": ours, "format_version": FORMAT_VERSION, "numpy": np.__version__, "scipy": scipy.__version__}
+
+
+def _seed_folder_gt(folder: Path) -> Path:
+    gt = folder / "ground_truth" if (folder / "ground_truth").is_dir() or (folder / "manifest.json").exists() else folder
+    if gt != folder and read_manifest(folder) is None:
+        raise InputError(f"{folder}: incomplete seed folder (no manifest.json); rerun python -m generator for this seed")
+    missing = [n for n in ("points.ply", "mesh.ply", "scene.h5") if not (gt / n).is_file()]
+    if missing:
+        raise InputError(f"{gt}: incomplete ground truth, missing {', '.join(missing)}; rerun python -m generator for this seed")
+    return gt
+
+
+def load_gt_cloud(path: str | Path, include_dynamic: bool = True) -> tuple[Cloud, list[str]]:
+    """The ground-truth cloud and its label table from a seed folder, its ground_truth/
+    folder, or a labelled point cloud file (label names from the PLY header or labels.json
+    beside it, else the generator's taxonomy)."""
+    path = Path(path)
+    if path.is_dir():
+        gt = _seed_folder_gt(path)
+        cloud = read_cloud(gt / "points.ply")
+        names = _label_names_near(gt / "points.ply")
+        if not include_dynamic:
+            from exporters.ply import read_ply
+
+            static = read_ply(gt / "points.ply").vertex["dynamic"] == 0
+            cloud = Cloud(cloud.points[static], cloud.labels[static], cloud.source)
+        return cloud, names
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder")
+    cloud = read_cloud(path)
+    return cloud, _label_names_near(path)
+
+
+def _label_names_near(path: Path) -> list[str]:
+    if path.suffix.lower() == ".ply":
+        with open(path, "rb") as f:
+            for _ in range(64):
+                line = f.readline().decode("ascii", errors="replace").strip()
+                if line.startswith("comment labels "):
+                    try:
+                        return json.loads(line[len("comment labels "):])
+                    except ValueError:
+                        break
+                if line == "end_header":
+                    break
+    for candidate in (path.parent / "labels.json", path.parent.parent / "labels.json"):
+        if candidate.is_file():
+            return read_label_table(candidate)
+    from generator.scene.taxonomy import CLASSES
+
+    return list(CLASSES)
+
+
+def crop_to_bounds(cloud: Cloud, bounds: np.ndarray, margin: float) -> Cloud:
+    """Keep the points inside the axis-aligned box ``bounds`` (2, 3) grown by ``margin`` metres."""
+    keep = np.all((cloud.points >= bounds[0] - margin) & (cloud.points <= bounds[1] + margin), axis=1)
+    return Cloud(cloud.points[keep], None if cloud.labels is None else cloud.labels[keep], cloud.source)
+
+
+def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: float = DEFAULT_TAU,
+                         sweep: tuple[float, ...] = DEFAULT_SWEEP, crop: bool = False, crop_margin: float | None = None,
+                         voxel: float | None = None, pred_labels: str | Path | None = None,
+                         include_dynamic: bool = True) -> tuple[dict, dict]:
+    """Score a predicted cloud against the ground truth (files or :class:`Cloud` s).
+
+    Returns (results, context): results is the JSON document (metrics, parameters,
+    versions); context holds the arrays used (for the coloured PLY)."""
+    if not (np.isfinite(tau) and tau > 0):
+        raise InputError(f"tau must be a positive number of metres, got {tau}")
+    if voxel is not None and not (np.isfinite(voxel) and voxel > 0):
+        raise InputError(f"voxel must be a positive number of metres, got {voxel}")
+    if isinstance(gt, Cloud):
+        gt_cloud, names = gt, None
+    else:
+        gt_cloud, names = load_gt_cloud(gt, include_dynamic)
+    if names is None:
+        from generator.scene.taxonomy import CLASSES
+
+        names = list(CLASSES)
+    pred_cloud = pred if isinstance(pred, Cloud) else read_cloud(pred, pred_labels, names)
+    check_label_range(pred_cloud, names, "predicted")
+    check_label_range(gt_cloud, names, "ground-truth")
+    n_pred_in, n_gt_in = len(pred_cloud), len(gt_cloud)
+    margin = tau if crop_margin is None else crop_margin
+    if crop:
+        bounds = np.stack([gt_cloud.points.min(axis=0), gt_cloud.points.max(axis=0)])
+        pred_cloud = crop_to_bounds(pred_cloud, bounds, margin)
+        if len(pred_cloud) == 0:
+            raise InputError(f"{pred_cloud.source}: no predicted point lies within the ground truth's bounds "
+                             f"(+{margin} m); check the coordinate frame (world, metres, Z up)")
+    if voxel:
+        p, pl = voxel_downsample(pred_cloud.points, pred_cloud.labels, voxel)
+        g, gl = voxel_downsample(gt_cloud.points, gt_cloud.labels, voxel)
+        pred_cloud, gt_cloud = Cloud(p, pl, pred_cloud.source), Cloud(g, gl, gt_cloud.source)
+    labelled = pred_cloud.labels is not None and gt_cloud.labels is not None
+    t0 = time.perf_counter()
+    metrics = reconstruction_metrics(pred_cloud.points, gt_cloud.points, pred_cloud.labels if labelled else None,
+                                     gt_cloud.labels if labelled else None, tau, tuple(sweep), names)
+    seconds = time.perf_counter() - t0
+    results = {
+        "task": "reconstruction",
+        "parameters": {"pred": pred_cloud.source, "gt": gt_cloud.source, "tau": tau, "sweep": list(sweep),
+                       "crop": crop, "crop_margin": margin if crop else None, "voxel": voxel,
+                       "include_dynamic": include_dynamic, "threshold": "strict: distance < tau",
+                       "units": "metres (chamfer_l2: square metres)"},
+        "inputs": {"pred_points": n_pred_in, "gt_points": n_gt_in, "pred_points_scored": len(pred_cloud),
+                   "gt_points_scored": len(gt_cloud), "pred_labelled": pred_cloud.labels is not None,
+                   "gt_labelled": gt_cloud.labels is not None},
+        "labels": names,
+        "metrics": metrics,
+        "versions": versions(),
+        "seconds": seconds,
+    }
+    return results, {"pred": pred_cloud, "gt": gt_cloud, "names": names}
+
+
+def colour_ply(path: str | Path, context: dict, tau: float) -> Path:
+    """The paper's figure 9: GT points coloured blue (a prediction within tau with the right
+    label), orange (within tau, wrong label), red (no prediction within tau)."""
+    from exporters.ply import write_ply
+
+    pred, gt = context["pred"], context["gt"]
+    d, i = nearest(gt.points, pred.points)
+    cat = match_categories(pred.labels, gt.labels, d, i, tau)
+    colours = np.array([[40, 90, 220], [245, 150, 30], [220, 30, 30]], np.uint8)[cat]
+    vertex = {"x": gt.points[:, 0].astype(np.float32), "y": gt.points[:, 1].astype(np.float32),
+              "z": gt.points[:, 2].astype(np.float32), "red": colours[:, 0], "green": colours[:, 1],
+              "blue": colours[:, 2], "match": cat.astype(np.uint8)}
+    return write_ply(path, vertex, comments=[f"match 0 = within {tau} m with the right label (blue), "
+                                             "1 = wrong label (orange), 2 = unmatched (red)"])
+
+
+def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str = "auto", progress=None) -> dict:
+    """Coverage curve of a trajectory over a seed folder's ground truth (see coverage.py)."""
+    gt = Path(gt)
+    if not gt.exists():
+        raise InputError(f"{gt}: no such file or folder")
+    if not gt.is_dir():
+        raise InputError(f"{gt}: coverage needs a seed folder (or its ground_truth/ folder) with scene.h5")
+    folder = _seed_folder_gt(gt)
+    try:
+        scene = read_ground_truth(folder)
+    except GroundTruthError as exc:
+        raise InputError(str(exc)) from None
+    poses = trajectory if isinstance(trajectory, Poses) else read_poses(trajectory, scene, frames)
+    t0 = time.perf_counter()
+    scorer = CoverageScorer(scene)
+    curve, observed = scorer.curve(poses, progress)
+    seconds = time.perf_counter() - t0
+    return {
+        "task": "coverage",
+        "parameters": {"gt": str(folder), "trajectory": poses.source, "frames": frames,
+                       "near": scene.near, "far": scene.far, "far_units": "metres, planar depth",
+                       "camera": {"K": (scene.K if poses.K is None else poses.K).tolist(),
+                                  "width": scene.width if poses.width is None else poses.width,
+                                  "height": scene.height if poses.height is None else poses.height}},
+        "num_poses": len(curve), "num_points": int(len(observed)),
+        "coverage": curve.tolist(), "auc": coverage_auc(curve), "final_coverage": float(curve[-1]),
+        "units": "coverage: share of ground-truth surface points observed at least once (0..1); "
+                 "AUC over an x-axis normalised to [0, 1] across all poses",
+        "versions": versions(), "seconds": seconds, "poses_per_second": len(curve) / seconds if seconds else None,
+    }

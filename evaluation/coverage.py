@@ -1,0 +1,167 @@
+"""Exploration scoring: which ground-truth surface points a sequence of camera poses
+observes, recomputed from ``ground_truth/scene.h5`` with the simulator's visibility rules
+(``generator.geometry.visibility``), with no bpy.
+
+coverage(t) = share of the scene's surface points observed at least once by poses 0..t;
+AUC = trapezoid of coverage over an x-axis normalised to [0, 1] across all poses (the
+initial pose included).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from exporters.ground_truth import GroundTruthScene
+from generator.geometry.raycast import SceneGeometry
+from generator.geometry.visibility import ViewLimits, visible_points
+
+from .inputs import InputError
+
+
+@dataclass
+class Poses:
+    """``world_from_camera`` (T, 4, 4) OpenCV poses; ``frames`` (T,) animation frame of each
+    pose (None: the first frame); camera ``K``/``width``/``height`` (None: the generator's)."""
+
+    world_from_camera: np.ndarray
+    frames: np.ndarray | None = None
+    K: np.ndarray | None = None
+    width: int | None = None
+    height: int | None = None
+    source: str = ""
+
+
+def coverage_auc(coverage: np.ndarray) -> float:
+    """Trapezoid of the coverage curve over x in [0, 1] (a single pose: its coverage)."""
+    c = np.asarray(coverage, np.float64)
+    if len(c) == 1:
+        return float(c[0])
+    return float(np.trapezoid(c, np.linspace(0.0, 1.0, len(c))))
+
+
+class CoverageScorer:
+    """Visibility of a scene's surface points from arbitrary poses, built once per scene."""
+
+    def __init__(self, scene: GroundTruthScene):
+        self.scene = scene
+        self.geometry = SceneGeometry(scene.parts)
+        s = scene.surface
+        self.local, self.local_normals, self.part = s["local"], s["local_normals"], s["part"].astype(np.int64)
+        self.slot = np.full(len(scene.parts), -1, np.int64)  # part index -> row of scene.matrices[f]
+        self.slot[scene.dynamic_parts] = np.arange(len(scene.dynamic_parts))
+        self.dynamic_points = np.flatnonzero(self.slot[self.part] >= 0)
+        self.world = self.local.copy()
+        self.world_normals = self.local_normals.copy()
+        self._frame = None
+
+    def set_frame(self, frame: int) -> None:
+        """Move dynamic parts (and their points) to animation ``frame``."""
+        if frame == self._frame:
+            return
+        self.geometry.set_matrices(self.scene.matrices_at(frame))
+        idx = self.dynamic_points
+        if len(idx):
+            m = self.scene.matrices[self.scene.frame_index(frame)][self.slot[self.part[idx]]]
+            r, t = m[:, :3, :3], m[:, :3, 3]
+            self.world[idx] = np.einsum("nij,nj->ni", r, self.local[idx]) + t
+            self.world_normals[idx] = np.einsum("nij,nj->ni", r, self.local_normals[idx])
+        self._frame = frame
+
+    def visible(self, world_from_camera: np.ndarray, K: np.ndarray, width: int, height: int,
+                frame: int | None = None) -> np.ndarray:
+        """(N,) bool: surface points visible from one pose at ``frame`` (default: the first)."""
+        self.set_frame(int(self.scene.frames[0]) if frame is None else int(frame))
+        return visible_points(self.geometry, self.world, self.world_normals, self.part, np.asarray(world_from_camera, np.float64),
+                              np.asarray(K, np.float64), int(width), int(height),
+                              ViewLimits(self.scene.near, self.scene.far))
+
+    def curve(self, poses: Poses, progress=None) -> tuple[np.ndarray, np.ndarray]:
+        """Coverage after each pose (T,) and the observed mask (N,)."""
+        K = self.scene.K if poses.K is None else poses.K
+        w = self.scene.width if poses.width is None else poses.width
+        h = self.scene.height if poses.height is None else poses.height
+        observed = np.zeros(len(self.local), bool)
+        out = np.empty(len(poses.world_from_camera))
+        it = range(len(out)) if progress is None else progress(range(len(out)))
+        for t in it:
+            frame = None if poses.frames is None else int(poses.frames[t])
+            observed |= self.visible(poses.world_from_camera[t], K, w, h, frame)
+            out[t] = observed.mean() if len(observed) else 0.0
+        return out, observed
+
+
+def read_poses(path: str | Path, scene: GroundTruthScene, frames: str = "auto") -> Poses:
+    """Poses from a trajectory .npz written by the generator (``trajectories.Trajectory``) or
+    a COLMAP model folder (binary or text; images in name order, PINHOLE-like camera).
+    ``frames``: 'auto' (from the timestamps when there are any, else the first frame),
+    'timestamps' or 'first'."""
+    path = Path(path)
+    if frames not in ("auto", "timestamps", "first"):
+        raise InputError(f"--frames must be auto, timestamps or first, got {frames!r}")
+    if path.is_dir():
+        return _read_colmap(path, frames)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file or folder")
+    from trajectories.base import Trajectory, TrajectoryError
+
+    try:
+        traj = Trajectory.load(path)
+    except TrajectoryError as exc:
+        raise InputError(f"{exc}; give a trajectory .npz written by the generator or a COLMAP model folder") from None
+    poses = np.asarray(traj.poses, np.float64)
+    if len(poses) == 0:
+        raise InputError(f"{path}: the trajectory has no poses")
+    if not np.isfinite(poses).all():
+        raise InputError(f"{path}: poses contain NaN or infinite values")
+    r = poses[:, :3, :3]
+    if np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max() > 1e-4 or np.any(np.abs(poses[:, 3] - [0, 0, 0, 1]) > 1e-9):
+        raise InputError(f"{path}: poses must be rigid world_from_camera matrices (orthonormal rotation, last row 0 0 0 1)")
+    f = None
+    if frames in ("auto", "timestamps"):
+        f = int(scene.frames[0]) + np.round(np.asarray(traj.timestamps) * scene.fps).astype(np.int64)
+    return Poses(poses, f, source=str(path))
+
+
+def _read_colmap(folder: Path, frames: str) -> Poses:
+    import pycolmap
+
+    if frames == "timestamps":
+        raise InputError(f"{folder}: a COLMAP model has no timestamps; use --frames first")
+    rec = pycolmap.Reconstruction()
+    try:
+        if (folder / "images.bin").is_file():
+            rec.read_binary(str(folder))
+        elif (folder / "images.txt").is_file():
+            rec.read_text(str(folder))
+        else:
+            raise InputError(f"{folder}: not a COLMAP model (no images.bin or images.txt)")
+    except (RuntimeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{folder}: unreadable COLMAP model ({str(exc).splitlines()[0][:120]})") from None
+    images = sorted(rec.images.values(), key=lambda im: im.name)
+    if not images:
+        raise InputError(f"{folder}: the COLMAP model has no images")
+    cams = {im.camera_id for im in images}
+    if len(cams) != 1:
+        raise InputError(f"{folder}: {len(cams)} cameras; coverage scoring needs a single camera")
+    cam = rec.cameras[cams.pop()]
+    params = list(cam.params)
+    model = cam.model.name
+    if model == "PINHOLE":
+        fx, fy, cx, cy = params
+    elif model == "SIMPLE_PINHOLE":
+        fx, cx, cy = params
+        fy = fx
+    else:
+        raise InputError(f"{folder}: camera model {model}; coverage scoring needs PINHOLE or SIMPLE_PINHOLE")
+    poses = []
+    for im in images:
+        m = np.eye(4)
+        m[:3, :4] = im.cam_from_world().matrix()
+        poses.append(np.linalg.inv(m))
+    K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+    return Poses(np.stack(poses), None, K, int(cam.width), int(cam.height), str(folder))

@@ -1,0 +1,198 @@
+"""Reading and checking what a participant submits: point clouds with optional labels, and
+camera trajectories. Every problem raises :class:`InputError` with a one-line message that
+says what is wrong and what to do."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from exporters.ply import PlyError, read_ply
+
+
+class InputError(ValueError):
+    """Bad input to the evaluation (one line: what is wrong, what to do)."""
+
+
+@dataclass
+class Cloud:
+    """``points`` (N, 3) float64 metres; ``labels`` (N,) int64 label ids or None."""
+
+    points: np.ndarray
+    labels: np.ndarray | None
+    source: str
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+CLOUD_SUFFIXES = (".ply", ".npy", ".npz", ".txt", ".xyz", ".csv", ".pts")
+
+
+def _text_table(path: Path) -> np.ndarray:
+    delimiter = "," if path.suffix == ".csv" else None
+    try:
+        with open(path) as f:
+            rows = [ln.replace(",", " ").split() if delimiter else ln.split() for ln in f
+                    if ln.strip() and not ln.lstrip().startswith(("#", "//"))]
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file; give a PLY, NPY, NPZ or text x y z [label] file") from None
+    if not rows:
+        raise InputError(f"{path}: empty point cloud")
+    widths = {len(r) for r in rows}
+    if len(widths) != 1:
+        raise InputError(f"{path}: rows have different numbers of columns ({sorted(widths)}); expected x y z [label]")
+    try:
+        return np.array(rows, dtype=np.float64)
+    except ValueError:
+        raise InputError(f"{path}: non-numeric values; expected columns x y z [label]") from None
+
+
+def _split_columns(table: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    if table.ndim != 2 or table.shape[1] not in (3, 4):
+        shape = "x".join(map(str, table.shape))
+        raise InputError(f"{path}: array of shape {shape}; expected (N, 3) x y z or (N, 4) x y z label")
+    return table[:, :3], (table[:, 3] if table.shape[1] == 4 else None)
+
+
+def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+    try:
+        d = read_ply(path)
+    except PlyError as exc:
+        raise InputError(str(exc)) from None
+    label = d.vertex.get("label", d.vertex.get("class", d.vertex.get("semantic")))
+    names = None
+    for c in d.comments:  # our own files name their label table
+        if c.startswith("labels "):
+            names = c[7:]
+    return d.points, label, names
+
+
+def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_names: list[str] | None = None) -> Cloud:
+    """A point cloud from PLY (ascii or binary; labels from a vertex property ``label``),
+    NPY ((N, 3) or (N, 4)), NPZ (arrays ``points`` [+ ``labels``], or a single (N, 3|4) array)
+    or text (x y z [label] per line). ``labels_path``: a separate file with one label per
+    point (text or NPY); labels may be ids or, with ``label_names``, class names."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    labels = None
+    try:
+        if suffix == ".ply":
+            points, labels, _ = _read_ply_cloud(path)
+        elif suffix == ".npy":
+            points, labels = _split_columns(np.load(path, allow_pickle=False), path)
+        elif suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                keys = list(z.keys())
+                if "points" in keys:
+                    points = z["points"]
+                    labels = z["labels"] if "labels" in keys else (z["label"] if "label" in keys else None)
+                    if points.ndim != 2 or points.shape[1] != 3:
+                        raise InputError(f"{path}: 'points' has shape {points.shape}; expected (N, 3)")
+                elif len(keys) == 1:
+                    points, labels = _split_columns(z[keys[0]], path)
+                else:
+                    raise InputError(f"{path}: NPZ needs an array 'points' (N, 3) and optionally 'labels' (N,); it has {keys}")
+        elif suffix in CLOUD_SUFFIXES:
+            points, labels = _split_columns(_text_table(path), path)
+        else:
+            raise InputError(f"{path}: unknown point cloud type {suffix!r}; use one of {', '.join(CLOUD_SUFFIXES)}")
+    except (OSError, ValueError, EOFError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{path}: unreadable ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    points = np.asarray(points)
+    if not np.issubdtype(points.dtype, np.number):
+        raise InputError(f"{path}: coordinates are not numbers (dtype {points.dtype})")
+    points = points.astype(np.float64)
+    if len(points) == 0:
+        raise InputError(f"{path}: empty point cloud")
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise InputError(f"{path}: {int(bad.sum())} points have NaN or infinite coordinates (first at row {int(np.argmax(bad))}); remove them")
+    if labels_path is not None:
+        if labels is not None:
+            raise InputError(f"{path} already has labels; do not pass a separate label file too")
+        labels = _read_label_file(Path(labels_path))
+        if len(labels) != len(points):
+            raise InputError(f"{labels_path}: {len(labels)} labels for {len(points)} points; give one label per point")
+    if labels is not None:
+        labels = _label_ids(np.asarray(labels), label_names, path if labels_path is None else Path(labels_path))
+    return Cloud(points, labels, str(path))
+
+
+def _read_label_file(path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.suffix.lower() == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{path}: unreadable label file ({exc.__class__.__name__})") from None
+        return arr.reshape(-1) if arr.ndim == 2 and 1 in arr.shape else arr
+    text = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    return np.array(text)
+
+
+def _label_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.ndarray:
+    if labels.ndim != 1:
+        raise InputError(f"{path}: labels must be one value per point, got shape {labels.shape}")
+    if labels.dtype.kind in "US":
+        try:
+            return labels.astype(np.float64).astype(np.int64) if _all_numeric(labels) else _names_to_ids(labels, names, path)
+        except ValueError:
+            return _names_to_ids(labels, names, path)
+    if labels.dtype.kind == "f":
+        if not np.isfinite(labels).all() or np.any(labels != np.round(labels)):
+            raise InputError(f"{path}: labels must be integer ids or class names")
+    if labels.dtype.kind not in "iuf":
+        raise InputError(f"{path}: labels must be integer ids or class names (dtype {labels.dtype})")
+    return labels.astype(np.int64)
+
+
+def _all_numeric(values: np.ndarray) -> bool:
+    try:
+        v = values.astype(np.float64)
+    except ValueError:
+        return False
+    return bool(np.all(v == np.round(v)))
+
+
+def _names_to_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.ndarray:
+    if names is None:
+        raise InputError(f"{path}: labels are class names but no label table is known; pass --gt with labels")
+    index = {n.lower(): i for i, n in enumerate(names)}
+    out = np.empty(len(labels), np.int64)
+    for value in np.unique(labels):
+        key = str(value).lower()
+        if key not in index:
+            raise InputError(f"{path}: unknown class name {str(value)!r}; known: {', '.join(names)}")
+        out[labels == value] = index[key]
+    return out
+
+
+def check_label_range(cloud: Cloud, names: list[str], role: str) -> None:
+    """Labels must be -1 (unlabelled) or an id of the label table."""
+    if cloud.labels is None:
+        return
+    bad = (cloud.labels < -1) | (cloud.labels >= len(names))
+    if bad.any():
+        value = int(cloud.labels[np.argmax(bad)])
+        raise InputError(f"{cloud.source}: {role} label id {value} is outside the taxonomy (0..{len(names) - 1}, "
+                         f"-1 = unlabelled); {int(bad.sum())} points affected")
+
+
+def read_label_table(path: Path) -> list[str]:
+    """labels.json (a JSON list of class names)."""
+    try:
+        names = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: unreadable label table ({exc.__class__.__name__})") from None
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise InputError(f"{path}: expected a JSON list of class names")
+    return names

@@ -1,0 +1,163 @@
+"""Reconstruction metrics (definitions: the Metrics section of DESIGN.md, restated in
+docs/evaluation.md). Distances in metres, Euclidean unless stated; thresholds strict (<).
+
+Everything is derived from one nearest-neighbour query per direction (plus one per
+direction with the L1 norm for the paper-compatibility block), on all cores.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+DEFAULT_TAU = 0.1
+DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+
+
+def nearest(source: np.ndarray, target: np.ndarray, p: float = 2, workers: int = -1,
+            tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (N,) from each source point to its nearest target point (Minkowski ``p``
+    norm) and that point's index (N,)."""
+    tree = tree if tree is not None else cKDTree(target)
+    d, i = tree.query(source, k=1, p=p, workers=workers)
+    return d, i
+
+
+def _ratio(num: float, den: float) -> float:
+    return float(num) / float(den) if den else 0.0
+
+
+def fscore(precision: float, recall: float) -> float:
+    """2PR / (P + R), 0 when both are 0."""
+    return 2 * precision * recall / (precision + recall) if precision + recall > 0 else 0.0
+
+
+def iou_per_class(gt: np.ndarray, pred: np.ndarray, num_classes: int) -> tuple[np.ndarray, np.ndarray]:
+    """IoU (C,) per class from paired labels (pred -1 = missed, counts against recall only)
+    and the union sizes (C,) (IoU is NaN where the union is empty)."""
+    ok_gt = (gt >= 0) & (gt < num_classes)
+    ok_pred = (pred >= 0) & (pred < num_classes)
+    tp = np.bincount(gt[ok_gt & (gt == pred)], minlength=num_classes)
+    gt_count = np.bincount(gt[ok_gt], minlength=num_classes)
+    pred_count = np.bincount(pred[ok_pred], minlength=num_classes)
+    union = gt_count + pred_count - tp
+    with np.errstate(invalid="ignore", divide="ignore"):
+        iou = np.where(union > 0, tp / np.maximum(union, 1), np.nan)
+    return iou, union
+
+
+def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.ndarray | None = None,
+                           gt_labels: np.ndarray | None = None, tau: float = DEFAULT_TAU,
+                           sweep: tuple[float, ...] = DEFAULT_SWEEP, class_names: list[str] | None = None,
+                           paper_block: bool = True, workers: int = -1) -> dict:
+    """Score a predicted cloud (N, 3) against ground-truth samples (M, 3), both in metres.
+
+    Returns a dict: accuracy, completeness, chamfer_l1, chamfer_l2 (metres, m^2 for L2),
+    precision / recall / fscore at ``tau``, the same over ``sweep``; when both clouds have
+    labels (ids into ``class_names``) also semantic_chamfer (pred->gt and gt->pred), per-class
+    IoU and mIoU (GT points take the label of their nearest prediction within ``tau``),
+    and the paper's mIoU variant (on predicted points within ``tau``); with ``paper_block``
+    the paper's one-direction Chamfer-L1 figures (Manhattan norm).
+    """
+    pred = np.asarray(pred, np.float64)
+    gt = np.asarray(gt, np.float64)
+    if len(pred) == 0 or len(gt) == 0:
+        raise ValueError("both clouds need at least one point")
+    d_pg, i_pg = nearest(pred, gt, workers=workers)  # prediction -> ground truth
+    d_gp, i_gp = nearest(gt, pred, workers=workers)  # ground truth -> prediction
+    out: dict = {
+        "num_pred": int(len(pred)), "num_gt": int(len(gt)), "tau": float(tau),
+        "accuracy": float(d_pg.mean()), "completeness": float(d_gp.mean()),
+    }
+    out["chamfer_l1"] = (out["accuracy"] + out["completeness"]) / 2
+    out["chamfer_l2"] = float((np.mean(d_pg ** 2) + np.mean(d_gp ** 2)) / 2)
+    prec, rec = _ratio(np.count_nonzero(d_pg < tau), len(pred)), _ratio(np.count_nonzero(d_gp < tau), len(gt))
+    out |= {"precision": prec, "recall": rec, "fscore": fscore(prec, rec)}
+    s_pg, s_gp = np.sort(d_pg), np.sort(d_gp)
+    out["sweep"] = []
+    for t in sweep:
+        p = np.searchsorted(s_pg, t, side="left") / len(pred)  # share strictly below t
+        r = np.searchsorted(s_gp, t, side="left") / len(gt)
+        out["sweep"].append({"tau": float(t), "precision": float(p), "recall": float(r), "fscore": fscore(p, r)})
+    if pred_labels is not None and gt_labels is not None:
+        out["semantic"] = _semantic(np.asarray(pred_labels), np.asarray(gt_labels), d_pg, i_pg, d_gp, i_gp, tau,
+                                    class_names)
+    if paper_block:
+        l1_pg, _ = nearest(pred, gt, p=1, workers=workers)
+        l1_gp, _ = nearest(gt, pred, p=1, workers=workers)
+        out["paper"] = {
+            "note": "the paper's code: one direction at a time, Manhattan (L1) norm of the offset to the nearest "
+                    "neighbour under that norm; not the symmetric Euclidean Chamfer-L1 above",
+            "chamfer_l1_manhattan_pred_to_gt": float(l1_pg.mean()),
+            "chamfer_l1_manhattan_gt_to_pred": float(l1_gp.mean())}
+        if "semantic" in out:
+            sem = out["semantic"]
+            out["paper"] |= {"semantic_chamfer_pred_to_gt": sem["semantic_chamfer_pred_to_gt"],
+                             "semantic_chamfer_gt_to_pred": sem["semantic_chamfer_gt_to_pred"],
+                             "miou": sem["miou_paper"]}
+    return out
+
+
+def _semantic(pred_labels, gt_labels, d_pg, i_pg, d_gp, i_gp, tau, class_names) -> dict:
+    num_classes = len(class_names) if class_names is not None else int(max(pred_labels.max(), gt_labels.max())) + 1
+    names = class_names or [str(i) for i in range(num_classes)]
+    close_p, close_g = d_pg < tau, d_gp < tau
+    sem_pg = np.count_nonzero(close_p & (pred_labels == gt_labels[i_pg]) & (pred_labels >= 0)) / len(pred_labels)
+    sem_gp = np.count_nonzero(close_g & (gt_labels == pred_labels[i_gp]) & (gt_labels >= 0)) / len(gt_labels)
+    # our mIoU: every GT point gets the label of its nearest prediction within tau, else is missed
+    transferred = np.where(close_g, pred_labels[i_gp], -1)
+    iou, union = iou_per_class(gt_labels, transferred, num_classes)
+    # the paper's variant: predicted points within tau, compared with their nearest GT point's label
+    iou_paper, union_paper = iou_per_class(gt_labels[i_pg[close_p]], pred_labels[close_p], num_classes)
+    present = union > 0
+    present_paper = union_paper > 0
+    return {
+        "semantic_chamfer_pred_to_gt": float(sem_pg), "semantic_chamfer_gt_to_pred": float(sem_gp),
+        "miou": float(np.mean(iou[present])) if present.any() else 0.0,
+        "miou_paper": float(np.mean(iou_paper[present_paper])) if present_paper.any() else 0.0,
+        "iou": {names[c]: float(iou[c]) for c in np.flatnonzero(present)},
+        "iou_paper": {names[c]: float(iou_paper[c]) for c in np.flatnonzero(present_paper)},
+        "classes_in_gt": [names[c] for c in np.unique(gt_labels[gt_labels >= 0]) if c < num_classes],
+        "classes_missing_from_pred": [names[c] for c in np.unique(gt_labels[gt_labels >= 0])
+                                      if c < num_classes and not np.any(pred_labels == c)],
+    }
+
+
+def match_categories(pred_labels: np.ndarray | None, gt_labels: np.ndarray | None, d_gp: np.ndarray,
+                     i_gp: np.ndarray, tau: float) -> np.ndarray:
+    """Per GT point, as in the paper's figure 9: 0 matched (a prediction within tau with the
+    same label, or any within tau when unlabelled), 1 wrong label, 2 unmatched."""
+    cat = np.full(len(d_gp), 2, np.int8)
+    close = d_gp < tau
+    if pred_labels is None or gt_labels is None:
+        cat[close] = 0
+        return cat
+    same = pred_labels[i_gp] == gt_labels
+    cat[close & same] = 0
+    cat[close & ~same] = 1
+    return cat
+
+
+def voxel_downsample(points: np.ndarray, labels: np.ndarray | None, voxel: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """One point per occupied voxel of size ``voxel`` (metres; cells [k v, (k+1) v)): the
+    mean of its points, with their most frequent label (ties: the smallest id)."""
+    keys = np.floor(points / voxel).astype(np.int64)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    n = len(counts)
+    sums = np.zeros((n, 3))
+    np.add.at(sums, inverse, points)
+    centres = sums / counts[:, None]
+    if labels is None:
+        return centres, None
+    lab = np.asarray(labels, np.int64)
+    shift = lab.min()
+    pairs = inverse * (int(lab.max() - shift) + 1) + (lab - shift)
+    uniq, cnt = np.unique(pairs, return_counts=True)
+    vox, lab_of = uniq // (int(lab.max() - shift) + 1), uniq % (int(lab.max() - shift) + 1) + shift
+    order = np.lexsort((lab_of, -cnt, vox))  # per voxel: highest count first, then smallest id
+    first = np.ones(len(order), bool)
+    first[1:] = vox[order][1:] != vox[order][:-1]
+    best = np.empty(n, np.int64)
+    best[vox[order][first]] = lab_of[order][first]
+    return centres, best

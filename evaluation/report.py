@@ -1,0 +1,106 @@
+"""Human-readable outputs: terminal tables and the coverage-curve PNG."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+
+def reconstruction_table(results: dict) -> str:
+    m, p = results["metrics"], results["parameters"]
+    lines = [f"reconstruction: {results['inputs']['pred_points_scored']:,} predicted vs "
+             f"{results['inputs']['gt_points_scored']:,} ground-truth points, tau = {p['tau']} m"
+             + (f", voxel {p['voxel']} m" if p["voxel"] else "") + (", cropped to GT bounds" if p["crop"] else ""),
+             "", f"{"metric":<42}{'value':>12}  unit"]
+
+    def row(name, value, unit=""):
+        lines.append(f"{name:<42}{value:>12.4f}  {unit}")
+
+    row("accuracy (pred -> GT, mean)", m["accuracy"], "m")
+    row("completeness (GT -> pred, mean)", m["completeness"], "m")
+    row("Chamfer-L1 (mean of both)", m["chamfer_l1"], "m")
+    row("Chamfer-L2 (mean of both, squared)", m["chamfer_l2"], "m^2")
+    row(f"precision @ {p['tau']} m", m["precision"])
+    row(f"recall @ {p['tau']} m", m["recall"])
+    row(f"F-score @ {p['tau']} m", m["fscore"])
+    if "semantic" in m:
+        s = m["semantic"]
+        row("Semantic Chamfer pred -> GT", s["semantic_chamfer_pred_to_gt"])
+        row("Semantic Chamfer GT -> pred", s["semantic_chamfer_gt_to_pred"])
+        row("mIoU (on GT points)", s["miou"])
+        row("mIoU (paper: on pred points within tau)", s["miou_paper"])
+        if s["classes_missing_from_pred"]:
+            lines.append(f"classes missing from the prediction: {', '.join(s['classes_missing_from_pred'])}")
+    lines += ["", "sweep:   tau    precision  recall  F-score"]
+    lines += [f"       {e['tau']:>6.3f}   {e['precision']:>7.4f}  {e['recall']:>6.4f}  {e['fscore']:>7.4f}" for e in m["sweep"]]
+    if "paper" in m:
+        lines += ["", "paper-compatible (one direction, Manhattan norm):",
+                  f"  Chamfer-L1 pred -> GT {m['paper']['chamfer_l1_manhattan_pred_to_gt']:.4f} m, "
+                  f"GT -> pred {m['paper']['chamfer_l1_manhattan_gt_to_pred']:.4f} m"]
+    if "semantic" in m and m["semantic"]["iou"]:
+        lines += ["", "IoU per class (GT points): " + ", ".join(f"{k} {v:.3f}" for k, v in m["semantic"]["iou"].items())]
+    return "\n".join(lines)
+
+
+def coverage_table(results: dict) -> str:
+    c = results["coverage"]
+    marks = sorted({0, len(c) // 4, len(c) // 2, 3 * len(c) // 4, len(c) - 1})
+    return "\n".join([
+        f"coverage: {results['num_poses']} poses, {results['num_points']:,} ground-truth surface points, "
+        f"visible within {results['parameters']['far']:g} m (planar depth)",
+        f"  AUC            {results['auc']:.4f}",
+        f"  final coverage {results['final_coverage']:.4f}",
+        "  curve          " + ", ".join(f"pose {i}: {c[i]:.4f}" for i in marks),
+    ])
+
+
+def write_atomic(path: str | Path, data: bytes) -> Path:
+    """Write through a temporary file renamed into place (never a half-written file)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+    return path
+
+
+def write_json(path: str | Path, results: dict) -> Path:
+    return write_atomic(path, json.dumps(results, indent=1).encode())
+
+
+def coverage_plot(path: str | Path, curves: dict[str, np.ndarray], title: str = "coverage") -> Path:
+    """A PNG of coverage curves (x: pose index, y: coverage 0..1), drawn with PIL."""
+    W, H, left, right, top, bottom = 640, 400, 60, 20, 30, 45
+    img = Image.new("RGB", (W, H), "white")
+    d = ImageDraw.Draw(img)
+    x0, x1, y0, y1 = left, W - right, H - bottom, top
+    n = max(len(c) for c in curves.values())
+    d.rectangle([x0, y1, x1, y0], outline=(0, 0, 0))
+    for k in range(6):
+        y = y0 + (y1 - y0) * k / 5
+        d.line([(x0, y), (x1, y)], fill=(225, 225, 225))
+        d.text((x0 - 30, y - 6), f"{k / 5:.1f}", fill=(0, 0, 0))
+    for k in range(5):
+        x = x0 + (x1 - x0) * k / 4
+        d.text((x - 8, y0 + 6), f"{round((n - 1) * k / 4)}", fill=(0, 0, 0))
+    d.text((W // 2 - 20, H - 20), "pose", fill=(0, 0, 0))
+    d.text((x0, 8), title, fill=(0, 0, 0))
+    colours = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189)]
+    for j, (name, c) in enumerate(curves.items()):
+        c = np.asarray(c, float)
+        xs = x0 + (x1 - x0) * np.arange(len(c)) / max(n - 1, 1)
+        ys = y0 + (y1 - y0) * np.clip(c, 0, 1)
+        colour = colours[j % len(colours)]
+        if len(c) > 1:
+            d.line(list(zip(xs, ys)), fill=colour, width=2)
+        else:
+            d.ellipse([xs[0] - 2, ys[0] - 2, xs[0] + 2, ys[0] + 2], fill=colour)
+        d.text((x1 - 200, y1 + 8 + 14 * j), name, fill=colour)
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.png")
+    img.save(tmp)
+    tmp.replace(path)
+    return path
