@@ -32,7 +32,7 @@ class Cloud:
 CLOUD_SUFFIXES = (".ply", ".npy", ".npz", ".txt", ".xyz", ".csv", ".pts")
 
 
-def _text_table(path: Path) -> np.ndarray:
+def _text_table(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     delimiter = "," if path.suffix == ".csv" else None
     try:
         with open(path) as f:
@@ -45,10 +45,16 @@ def _text_table(path: Path) -> np.ndarray:
     widths = {len(r) for r in rows}
     if len(widths) != 1:
         raise InputError(f"{path}: rows have different numbers of columns ({sorted(widths)}); expected x y z [label]")
+    width = widths.pop()
+    if width not in (3, 4):
+        raise InputError(f"{path}: {width} columns; expected (N, 3) x y z or (N, 4) x y z label")
+    table = np.array(rows, dtype=object)
     try:
-        return np.array(rows, dtype=np.float64)
+        points = table[:, :3].astype(np.float64)
     except ValueError:
-        raise InputError(f"{path}: non-numeric values; expected columns x y z [label]") from None
+        raise InputError(f"{path}: non-numeric coordinates; expected columns x y z [label]") from None
+    labels = table[:, 3].astype(str) if width == 4 else None
+    return points, labels
 
 
 def _split_columns(table: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
@@ -99,7 +105,7 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
                 else:
                     raise InputError(f"{path}: NPZ needs an array 'points' (N, 3) and optionally 'labels' (N,); it has {keys}")
         elif suffix in CLOUD_SUFFIXES:
-            points, labels = _split_columns(_text_table(path), path)
+            points, labels = _text_table(path)
         else:
             raise InputError(f"{path}: unknown point cloud type {suffix!r}; use one of {', '.join(CLOUD_SUFFIXES)}")
     except (OSError, ValueError, EOFError) as exc:

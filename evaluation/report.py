@@ -15,7 +15,7 @@ def reconstruction_table(results: dict) -> str:
     lines = [f"reconstruction: {results['inputs']['pred_points_scored']:,} predicted vs "
              f"{results['inputs']['gt_points_scored']:,} ground-truth points, tau = {p['tau']} m"
              + (f", voxel {p['voxel']} m" if p["voxel"] else "") + (", cropped to GT bounds" if p["crop"] else ""),
-             "", f"{"metric":<42}{'value':>12}  unit"]
+             "", f"{'metric':<42}{'value':>12}  unit"]
 
     def row(name, value, unit=""):
         lines.append(f"{name:<42}{value:>12.4f}  {unit}")

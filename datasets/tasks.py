@@ -1,0 +1,159 @@
+"""Indexable datasets for the common training tasks, over one or many seed folders.
+
+They follow the PyTorch ``Dataset`` protocol (``__len__``, ``__getitem__``) without importing
+torch, open files lazily in whichever process reads them (safe with DataLoader workers),
+and return dicts of numpy arrays, or torch tensors with ``as_tensor=True`` (torch needed).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Iterable
+
+import numpy as np
+
+from .scene import DatasetError, Scene, Sequence
+
+
+def _scenes(paths: str | Path | Scene | Iterable) -> list[Scene]:
+    if isinstance(paths, (str, Path, Scene)):
+        paths = [paths]
+    scenes = [p if isinstance(p, Scene) else Scene(p) for p in paths]
+    if not scenes:
+        raise DatasetError("no scenes given")
+    return scenes
+
+
+def _to_tensor(sample: dict) -> dict:
+    try:
+        import torch
+    except ImportError:
+        raise DatasetError("as_tensor=True needs PyTorch; install torch or leave as_tensor=False") from None
+    out = {}
+    for k, v in sample.items():
+        if isinstance(v, np.ndarray) and v.dtype != object and v.dtype.kind not in "US":
+            out[k] = torch.from_numpy(np.ascontiguousarray(v if v.dtype != np.float16 else v.astype(np.float32)))
+        elif isinstance(v, dict):
+            out[k] = _to_tensor(v)
+        else:
+            out[k] = v
+    return out
+
+
+class _Base:
+    def __init__(self, transform: Callable | None, as_tensor: bool):
+        self.transform, self.as_tensor = transform, as_tensor
+
+    def _finish(self, sample: dict) -> dict:
+        if self.transform is not None:
+            sample = self.transform(sample)
+        return _to_tensor(sample) if self.as_tensor else sample
+
+
+class FrameDataset(_Base):
+    """Single frames (depth estimation, segmentation, novel-view synthesis): each item is a
+    dict with rgb, depth, label, instance, K, pose, timestamp, scene (seed), trajectory, index.
+
+    ``trajectories``: kinds to include (default: all); ``keys``: image arrays to return."""
+
+    def __init__(self, paths, trajectories: list[str] | None = None, transform: Callable | None = None,
+                 as_tensor: bool = False, keys: tuple[str, ...] = ("rgb", "depth", "label", "instance")):
+        super().__init__(transform, as_tensor)
+        self.scenes = _scenes(paths)
+        self.keys = keys
+        self.index: list[tuple[int, str, int]] = []
+        for s, scene in enumerate(self.scenes):
+            for kind in trajectories or scene.trajectories:
+                self.index += [(s, kind, i) for i in range(len(scene[kind]))]
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, i: int) -> dict:
+        s, kind, j = self.index[i]
+        scene = self.scenes[s]
+        f = scene[kind][j]
+        sample = {k: getattr(f, k) for k in self.keys}
+        sample |= {"K": f.K, "pose": f.pose, "timestamp": f.timestamp, "scene": scene.seed, "trajectory": kind,
+                   "index": j}
+        return self._finish(sample)
+
+
+class ClipDataset(_Base):
+    """Clips of ``length`` consecutive frames (``stride`` apart) with their point tracks
+    (tracking, optical / scene flow). Each item: ``frames`` (list of frame dicts), ``tracks``:
+    ``ids`` (n,) of the points visible in the first frame, ``xy`` (length, n, 2) their pixel
+    positions in every frame (projected even when hidden), ``visible`` (length, n) bool,
+    ``depth`` (length, n) planar metres, ``xyz`` (length, n, 3) world positions."""
+
+    def __init__(self, paths, length: int = 2, stride: int = 1, trajectories: list[str] | None = None,
+                 transform: Callable | None = None, as_tensor: bool = False, max_points: int | None = None):
+        super().__init__(transform, as_tensor)
+        if length < 1 or stride < 1:
+            raise ValueError(f"length and stride must be at least 1, got {length}, {stride}")
+        self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
+        self.index: list[tuple[int, str, int]] = []
+        span = (length - 1) * stride
+        for s, scene in enumerate(self.scenes):
+            for kind in trajectories or scene.trajectories:
+                self.index += [(s, kind, i) for i in range(len(scene[kind]) - span)]
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, i: int) -> dict:
+        from generator.geometry.camera import project
+
+        s, kind, start = self.index[i]
+        seq: Sequence = self.scenes[s][kind]
+        times = [start + k * self.stride for k in range(self.length)]
+        frames = [seq[t] for t in times]
+        ids = seq.visible_tracks(times[0])["ids"]
+        if self.max_points is not None and len(ids) > self.max_points:
+            ids = np.sort(np.random.default_rng([s, start]).choice(ids, self.max_points, replace=False))
+        xy = np.zeros((self.length, len(ids), 2))
+        depth = np.zeros((self.length, len(ids)))
+        xyz = np.zeros((self.length, len(ids), 3))
+        visible = np.zeros((self.length, len(ids)), bool)
+        for k, t in enumerate(times):
+            xyz[k] = seq.point_positions(t, ids)
+            xy[k], depth[k] = project(xyz[k], seq.poses[t], seq.K)
+            visible[k] = np.isin(ids, seq.visible_tracks(t)["ids"])
+        sample = {"frames": [{"rgb": f.rgb, "depth": f.depth, "label": f.label, "instance": f.instance,
+                              "K": f.K, "pose": f.pose, "timestamp": f.timestamp} for f in frames],
+                  "tracks": {"ids": ids, "xy": xy, "visible": visible, "depth": depth, "xyz": xyz},
+                  "scene": self.scenes[s].seed, "trajectory": kind, "index": start}
+        if self.transform is not None:
+            # image transforms apply frame by frame; the tracks follow the first frame's change
+            new_frames = []
+            for k, f in enumerate(sample["frames"]):
+                out = self.transform(f | {"tracks": {"xy": xy[k]}})
+                new_frames.append({key: v for key, v in out.items() if key != "tracks"})
+                xy[k] = out["tracks"]["xy"]
+            sample["frames"], sample["tracks"]["xy"] = new_frames, xy
+        if self.as_tensor:
+            sample = _to_tensor({k: v for k, v in sample.items() if k != "frames"}) | {
+                "frames": [_to_tensor(f) for f in sample["frames"]]}
+        return sample
+
+
+class PointCloudDataset(_Base):
+    """Labelled ground-truth point clouds (3D semantic segmentation), one item per scene:
+    ``xyz`` (N, 3) float32 metres, ``label``, ``instance`` (N,) int32, ``dynamic`` (N,) bool.
+    ``num_points``: a seeded random subset of that size per item (all points by default)."""
+
+    def __init__(self, paths, num_points: int | None = None, static_only: bool = False,
+                 transform: Callable | None = None, as_tensor: bool = False):
+        super().__init__(transform, as_tensor)
+        self.scenes, self.num_points, self.static_only = _scenes(paths), num_points, static_only
+
+    def __len__(self) -> int:
+        return len(self.scenes)
+
+    def __getitem__(self, i: int) -> dict:
+        scene = self.scenes[i]
+        cloud = scene.point_cloud(self.static_only)
+        if self.num_points is not None and self.num_points < len(cloud["xyz"]):
+            keep = np.sort(np.random.default_rng(scene.seed).choice(len(cloud["xyz"]), self.num_points, replace=False))
+            cloud = {k: v[keep] for k, v in cloud.items()}
+        return self._finish(cloud | {"scene": scene.seed})

@@ -1,0 +1,234 @@
+"""The evaluation package: metrics on hand-computed cases and properties, coverage recomputed
+from the stored ground truth against the generator's own history, and bad input on the CLI."""
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import ROOT
+from evaluation import Cloud, reconstruction_metrics, score_coverage, score_reconstruction, voxel_downsample
+from evaluation.coverage import coverage_auc
+from exporters.ply import read_ply, write_ply
+
+
+def grid(n=20, spacing=1.0, z=0.0):
+    """An n x n grid of points on the plane z, spacing metres apart."""
+    x, y = np.meshgrid(np.arange(n) * spacing, np.arange(n) * spacing)
+    return np.column_stack([x.ravel(), y.ravel(), np.full(n * n, z)])
+
+
+# ---- analytic cases ----------------------------------------------------------------------------
+
+def test_plane_offset_by_hand():
+    gt = grid()
+    pred = gt + [0.0, 0.0, 0.0625]  # exactly representable; far below the 1 m grid spacing
+    m = reconstruction_metrics(pred, gt, tau=0.1, sweep=(0.0625, 0.07))
+    assert m["accuracy"] == m["completeness"] == m["chamfer_l1"] == 0.0625
+    assert m["chamfer_l2"] == 0.0625 ** 2
+    assert m["precision"] == m["recall"] == m["fscore"] == 1.0
+    at, above = m["sweep"]
+    assert at["precision"] == at["recall"] == at["fscore"] == 0.0  # distance exactly tau is not < tau
+    assert above["fscore"] == 1.0
+
+
+def test_manhattan_block_by_hand():
+    gt = grid()
+    pred = gt + [0.03, 0.04, 0.0]  # Euclidean 0.05, Manhattan 0.07
+    m = reconstruction_metrics(pred, gt)
+    assert m["chamfer_l1"] == pytest.approx(0.05, abs=1e-12)
+    assert m["paper"]["chamfer_l1_manhattan_pred_to_gt"] == pytest.approx(0.07, abs=1e-12)
+    assert m["paper"]["chamfer_l1_manhattan_gt_to_pred"] == pytest.approx(0.07, abs=1e-12)
+
+
+def test_cube_corners_partial_prediction_by_hand():
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    pred = corners[:2]  # (0,0,0) and (0,0,1)
+    m = reconstruction_metrics(pred, corners, tau=0.5, sweep=())
+    # GT -> pred distances: 2 corners at 0, 4 at 1 (one edge away), 2 at sqrt(2)
+    assert m["accuracy"] == 0.0
+    assert m["completeness"] == pytest.approx((4 * 1 + 2 * np.sqrt(2)) / 8)
+    assert m["chamfer_l2"] == pytest.approx((0 + (4 * 1 + 2 * 2) / 8) / 2)
+    assert m["precision"] == 1.0 and m["recall"] == 0.25 and m["fscore"] == pytest.approx(0.4)
+
+
+def test_label_swap_and_missing_class_by_hand():
+    gt = grid()
+    labels = np.repeat([0, 1, 2, 3], 100)
+    pred_labels = labels.copy()
+    pred_labels[labels == 0], pred_labels[labels == 1] = 1, 0  # swap classes 0 and 1
+    pred_labels[labels == 3] = 2  # class 3 missing from the prediction
+    names = ["a", "b", "c", "d"]
+    s = reconstruction_metrics(gt, gt, pred_labels, labels, class_names=names)["semantic"]
+    assert s["semantic_chamfer_pred_to_gt"] == s["semantic_chamfer_gt_to_pred"] == 0.25  # only class 2 right
+    assert s["iou"] == {"a": 0.0, "b": 0.0, "c": 0.5, "d": 0.0}  # c: 100 right / (100 + 100 wrongly c)
+    assert s["miou"] == pytest.approx(0.125)
+    assert s["classes_missing_from_pred"] == ["d"]
+
+
+def test_empty_overlap_and_duplicates():
+    gt = grid()
+    m = reconstruction_metrics(gt + [100.0, 0, 0], gt, np.zeros(400, int), np.zeros(400, int), class_names=["x"])
+    assert m["precision"] == m["recall"] == m["fscore"] == 0.0
+    assert m["semantic"]["semantic_chamfer_pred_to_gt"] == 0.0 and m["semantic"]["miou"] == 0.0
+    pred = gt[:150] + 0.01
+    once = reconstruction_metrics(pred, gt)
+    twice = reconstruction_metrics(np.concatenate([pred, pred]), gt)
+    for key in ("accuracy", "completeness", "chamfer_l1", "chamfer_l2", "precision", "recall", "fscore"):
+        assert once[key] == pytest.approx(twice[key], abs=1e-15)
+
+
+def test_voxel_downsample_by_hand():
+    pts = np.array([[0.01, 0.01, 0.01], [0.03, 0.03, 0.03], [0.04, 0.01, 0.02], [0.06, 0.0, 0.0]])
+    centres, labels = voxel_downsample(pts, np.array([5, 7, 7, 1]), 0.05)
+    order = np.argsort(centres[:, 0])
+    np.testing.assert_allclose(centres[order], [[0.08 / 3, 0.05 / 3, 0.06 / 3], [0.06, 0.0, 0.0]])
+    np.testing.assert_array_equal(labels[order], [7, 1])  # the majority label of the voxel
+
+
+# ---- properties ---------------------------------------------------------------------------------
+
+clouds = st.integers(1, 60).flatmap(lambda n: st.tuples(
+    st.lists(st.tuples(*[st.floats(-5, 5, allow_nan=False)] * 3), min_size=n, max_size=n),
+    st.lists(st.integers(0, 3), min_size=n, max_size=n)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(clouds)
+def test_identical_clouds_score_perfectly(cloud):
+    pts, lab = np.array(cloud[0]), np.array(cloud[1])
+    m = reconstruction_metrics(pts, pts, lab, lab, class_names=list("abcd"))
+    assert m["accuracy"] == m["completeness"] == 0.0 and m["fscore"] == 1.0
+    # duplicated points with different labels are ambiguous: perfect only when positions are unique
+    if len(np.unique(pts, axis=0)) == len(pts):
+        assert m["semantic"]["semantic_chamfer_pred_to_gt"] == 1.0 and m["semantic"]["miou"] == 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(clouds, clouds, st.randoms(use_true_random=False))
+def test_order_invariance_and_direction_swap(a, b, rnd):
+    pa, la, pb, lb = np.array(a[0]), np.array(a[1]), np.array(b[0]), np.array(b[1])
+    names = list("abcd")
+    m = reconstruction_metrics(pa, pb, la, lb, tau=0.5, class_names=names)
+    perm_a, perm_b = list(range(len(pa))), list(range(len(pb)))
+    rnd.shuffle(perm_a)
+    rnd.shuffle(perm_b)
+    m2 = reconstruction_metrics(pa[perm_a], pb[perm_b], la[perm_a], lb[perm_b], tau=0.5, class_names=names)
+    for key in ("accuracy", "completeness", "chamfer_l2", "precision", "recall"):
+        assert m[key] == pytest.approx(m2[key], abs=1e-12)
+    swapped = reconstruction_metrics(pb, pa, lb, la, tau=0.5, class_names=names)
+    assert swapped["accuracy"] == pytest.approx(m["completeness"], abs=1e-12)
+    assert swapped["precision"] == m["recall"] and swapped["recall"] == m["precision"]
+    if len(np.unique(pa, axis=0)) == len(pa) and len(np.unique(pb, axis=0)) == len(pb):
+        s, t = m["semantic"], swapped["semantic"]
+        assert s["semantic_chamfer_pred_to_gt"] == pytest.approx(t["semantic_chamfer_gt_to_pred"])
+
+
+# ---- on the real pipeline's output ----------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def seed_folder(finished):
+    return finished[0] / "seed_000004"
+
+
+@pytest.mark.parametrize("kind", ["orbit", "spline"])
+def test_coverage_from_stored_mesh_equals_the_simulators_history(seed_folder, kind):
+    expected = json.loads((seed_folder / kind / "coverage.json").read_text())
+    r = score_coverage(seed_folder, seed_folder / kind / "trajectory.npz")
+    assert r["num_poses"] == 3 and r["final_coverage"] > 0
+    np.testing.assert_allclose(r["coverage"], expected["coverage"], rtol=0, atol=1e-12)
+    assert r["auc"] == pytest.approx(expected["auc"], abs=1e-12)
+    assert r["auc"] == pytest.approx(coverage_auc(r["coverage"]))
+    # the COLMAP model of the same flight gives the same poses (scored at the first frame)
+    a = score_coverage(seed_folder, seed_folder / kind / "sparse" / "0", frames="first")
+    b = score_coverage(seed_folder, seed_folder / kind / "trajectory.npz", frames="first")
+    np.testing.assert_allclose(a["coverage"], b["coverage"], atol=1e-12)
+
+
+def test_perfect_and_noisy_reconstruction_of_the_real_gt(seed_folder):
+    gt = read_ply(seed_folder / "ground_truth" / "points.ply")
+    r, _ = score_reconstruction(Cloud(gt.points, gt.vertex["label"].astype(np.int64), "same"), seed_folder)
+    m = r["metrics"]
+    assert m["chamfer_l1"] == 0 and m["semantic"]["miou"] == 1.0
+    assert r["labels"] == json.loads((seed_folder / "labels.json").read_text())
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "evaluation", *map(str, args)], capture_output=True, text=True, cwd=ROOT)
+
+
+def test_cli_writes_json_and_figure9_ply(seed_folder, tmp_path):
+    gt = read_ply(seed_folder / "ground_truth" / "points.ply")
+    labels = gt.vertex["label"].copy()
+    labels[:10] = (labels[:10] + 1) % 5  # ten wrong labels
+    np.savetxt(tmp_path / "pred.txt", np.column_stack([gt.points, labels]), fmt="%.9g")
+    r = cli("reconstruction", "--gt", seed_folder, "--pred", tmp_path / "pred.txt", "--json", tmp_path / "r.json",
+            "--ply", tmp_path / "fig9.ply", "--crop")
+    assert r.returncode == 0, r.stderr
+    assert "Semantic Chamfer pred -> GT" in r.stdout and "Read blend" not in r.stdout
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["parameters"]["crop"] and doc["parameters"]["tau"] == 0.1 and doc["versions"]["numpy"]
+    assert doc["metrics"]["semantic"]["semantic_chamfer_gt_to_pred"] == pytest.approx(1 - 10 / len(labels))
+    fig = read_ply(tmp_path / "fig9.ply")
+    assert np.count_nonzero(fig.vertex["match"] == 1) == 10 and np.count_nonzero(fig.vertex["match"] == 2) == 0
+    np.testing.assert_array_equal(fig.vertex["match"] == 1, labels != gt.vertex["label"])
+    r = cli("coverage", "--gt", seed_folder, "--trajectory", seed_folder / "orbit" / "trajectory.npz",
+            "--json", tmp_path / "c.json", "--plot", tmp_path / "c.png")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "c.json").read_text())["num_poses"] == 3 and (tmp_path / "c.png").stat().st_size > 0
+
+
+def _bad_inputs(folder, tmp):
+    good = tmp / "good.txt"
+    np.savetxt(good, np.random.default_rng(0).uniform(0, 1, (20, 3)))
+    (tmp / "nan.txt").write_text("0 0 0\nnan 1 1\n")
+    (tmp / "inf.npy").write_bytes(b"")
+    np.save(tmp / "inf.npy", np.array([[0, 0, 0], [np.inf, 0, 0]]))
+    (tmp / "cols.txt").write_text("0 0 0 0 0\n1 1 1 1 1\n")
+    (tmp / "empty.txt").write_text("# nothing\n")
+    (tmp / "label.txt").write_text("0 0 0 3\n1 1 1 99\n")
+    (tmp / "labels_short.txt").write_text("1\n2\n")
+    (tmp / "names.txt").write_text("0 0 0 Building\n1 1 1 Unicorn\n")
+    write_ply(tmp / "trunc.ply", {"x": np.zeros(10, np.float32), "y": np.zeros(10, np.float32), "z": np.zeros(10, np.float32)})
+    data = (tmp / "trunc.ply").read_bytes()
+    (tmp / "trunc.ply").write_bytes(data[:-7])
+    (tmp / "garbage.ply").write_bytes(b"\x00\x01garbage")
+    incomplete = tmp / "incomplete"
+    shutil.copytree(folder, incomplete)
+    (incomplete / "ground_truth" / "scene.h5").unlink()
+    no_manifest = tmp / "no_manifest"
+    shutil.copytree(folder, no_manifest)
+    (no_manifest / "manifest.json").unlink()
+    rec = ["reconstruction", "--gt", folder, "--pred"]
+    return [
+        (rec + [tmp / "missing.ply"], "no such file"),
+        (rec + [tmp / "trunc.ply"], "truncated"),
+        (rec + [tmp / "garbage.ply"], "not a PLY file"),
+        (rec + [tmp / "nan.txt"], "NaN or infinite"),
+        (rec + [tmp / "inf.npy"], "NaN or infinite"),
+        (rec + [tmp / "cols.txt"], "expected (N, 3)"),
+        (rec + [tmp / "empty.txt"], "empty point cloud"),
+        (rec + [tmp / "label.txt"], "outside the taxonomy"),
+        (rec + [good, "--pred-labels", tmp / "labels_short.txt"], "2 labels for 20 points"),
+        (rec + [tmp / "names.txt"], "unknown class name 'Unicorn'"),
+        (["reconstruction", "--gt", incomplete, "--pred", good], "missing scene.h5"),
+        (["reconstruction", "--gt", no_manifest, "--pred", good], "incomplete seed folder"),
+        (["reconstruction", "--gt", folder, "--pred", good, "--tau", "-1"], "positive number"),
+        (["coverage", "--gt", incomplete, "--trajectory", folder / "orbit" / "trajectory.npz"], "missing scene.h5"),
+        (["coverage", "--gt", folder, "--trajectory", good], "trajectory"),
+    ]
+
+
+def test_bad_input_one_line_exit_2_nothing_written(seed_folder, tmp_path):
+    for args, message in _bad_inputs(seed_folder, tmp_path):
+        out = tmp_path / "out.json"
+        r = cli(*args, "--json", out)
+        assert r.returncode == 2, (args, r.stdout, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], (args, r.stderr)
+        assert "Traceback" not in r.stderr and not out.exists()
