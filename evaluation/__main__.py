@@ -8,42 +8,26 @@ Bad input: one line on stderr, exit code 2, nothing written.
 
 from __future__ import annotations
 
-import argparse
-import math
 import sys
 from pathlib import Path
 
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, exit 2
-        print(f"error: {message} (see python -m evaluation {self.prog.split()[-1]} --help)", file=sys.stderr)
-        sys.exit(2)
-
-
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not (v > 0 and math.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}")
-    return v
+from generator.cli_args import OneLineParser, positive_float
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    p = _Parser(prog="python -m evaluation", description="Score reconstructions and explorations against the "
+    p = OneLineParser(prog="python -m evaluation", description="Score reconstructions and explorations against the "
                 "ground truth written by python -m generator (no Blender needed).")
-    sub = p.add_subparsers(dest="task", required=True, parser_class=_Parser)
+    sub = p.add_subparsers(dest="task", required=True, parser_class=OneLineParser)
     r = sub.add_parser("reconstruction", help="score a point cloud (geometry and, with labels, semantics)")
     r.add_argument("--gt", type=Path, required=True, help="seed folder, its ground_truth/ folder, or a labelled cloud")
     r.add_argument("--pred", type=Path, required=True, help="predicted cloud: PLY, NPY, NPZ or text x y z [label]")
     r.add_argument("--pred-labels", type=Path, help="separate label file for --pred (one id or class name per line, or NPY)")
-    r.add_argument("--tau", type=_positive, default=0.1, help="distance threshold in metres (default 0.1, strict <)")
-    r.add_argument("--sweep", type=_positive, nargs="+", default=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
+    r.add_argument("--tau", type=positive_float("a positive number of metres"), default=0.1, help="distance threshold in metres (default 0.1, strict <)")
+    r.add_argument("--sweep", type=positive_float("a positive number of metres"), nargs="+", default=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
                    help="thresholds of the precision/recall sweep, metres")
     r.add_argument("--crop", action="store_true", help="drop predicted points outside the GT's bounding box (+ margin)")
-    r.add_argument("--crop-margin", type=_positive, help="margin of --crop in metres (default: tau)")
-    r.add_argument("--voxel", type=_positive, help="voxel-downsample both clouds to this size (metres) first")
+    r.add_argument("--crop-margin", type=positive_float("a positive number of metres"), help="margin of --crop in metres (default: tau)")
+    r.add_argument("--voxel", type=positive_float("a positive number of metres"), help="voxel-downsample both clouds to this size (metres) first")
     r.add_argument("--static-only", action="store_true", help="score against the static part of the GT only")
     r.add_argument("--json", type=Path, help="write every number, parameter and version here")
     r.add_argument("--ply", type=Path, help="write the GT cloud coloured by match (paper's figure 9)")

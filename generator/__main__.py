@@ -13,35 +13,11 @@ from pathlib import Path
 from trajectories import KINDS
 
 from .batch.config import RunConfig
+from .cli_args import OneLineParser, int_at_least, positive_float, resolution
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
 
 DEFAULTS = RunConfig()
-
-
-def _int_at_least(minimum: int, what: str):
-    """An argparse type: an integer >= ``minimum``, with a one-line error otherwise."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value < minimum:
-            raise argparse.ArgumentTypeError(f"{what} must be an integer >= {minimum}, got {text!r}")
-        return value
-
-    return parse
-
-
-def _resolution(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        w = h = 0
-    if w <= 0 or h <= 0:
-        raise argparse.ArgumentTypeError(f"resolution must be WxH with positive integers, e.g. 640x480; got {text!r}")
-    return w, h
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -54,41 +30,31 @@ def _shard(text: str) -> tuple[int, int]:
     return k, n
 
 
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = -1.0
-    if not v > 0 or v != v or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return v
-
-
 def parse_args(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="python -m generator",
         description="Build one procedural construction site per seed, fly camera trajectories through it and "
                     "write, per frame, RGB/depth/labels/instances (EXR), RGB (PNG), plus each trajectory, its "
                     "coverage and a manifest. Finished seeds are skipped on rerun.")
-    p.add_argument("--seeds", type=_int_at_least(0, "seed"), nargs="+", default=[0, 137, 281],
+    p.add_argument("--seeds", type=int_at_least(0, "seed"), nargs="+", default=[0, 137, 281],
                    help="scene seeds, non-negative integers (default: 0 137 281)")
     p.add_argument("--out", type=Path, default=Path("output"), help="output folder (default: ./output)")
     p.add_argument("--scene-preset", choices=sorted(SCENE_PRESETS), default=DEFAULTS.scene_preset,
                    help=f"site size and content (default: {DEFAULTS.scene_preset})")
     p.add_argument("--render-preset", choices=list(RENDER_PRESETS), default=DEFAULTS.render_preset,
                    help=f"render quality (default: {DEFAULTS.render_preset}: Cycles, 4 samples, denoised)")
-    p.add_argument("--resolution", type=_resolution, default=DEFAULTS.resolution,
+    p.add_argument("--resolution", type=resolution, default=DEFAULTS.resolution,
                    help="image size WxH in pixels (default: 640x480)")
-    p.add_argument("--frames", type=_int_at_least(2, "frames"), default=DEFAULTS.frames,
+    p.add_argument("--frames", type=int_at_least(2, "frames"), default=DEFAULTS.frames,
                    help=f"frames per trajectory, at 10 frames per second of scene time (default: {DEFAULTS.frames})")
     p.add_argument("--trajectory", choices=KINDS, action="append", dest="trajectories",
                    help="trajectory kind, repeatable (default: orbit and spline)")
-    p.add_argument("--points-density", type=_positive_float, default=DEFAULTS.points_density,
+    p.add_argument("--points-density", type=positive_float(), default=DEFAULTS.points_density,
                    help=f"surface points per square metre for tracking and coverage (default: {DEFAULTS.points_density})")
-    p.add_argument("--scoring-density", type=_positive_float, default=DEFAULTS.scoring_density,
+    p.add_argument("--scoring-density", type=positive_float(), default=DEFAULTS.scoring_density,
                    help=f"points per square metre of the ground-truth cloud for scoring (default: {DEFAULTS.scoring_density:g})")
     p.add_argument("--colmap-text", action="store_true", help="also write the COLMAP models as text (.txt)")
-    p.add_argument("--workers", type=_int_at_least(1, "workers"), default=1,
+    p.add_argument("--workers", type=int_at_least(1, "workers"), default=1,
                    help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
     p.add_argument("--shard", type=_shard, default=(0, 1),
                    help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")

@@ -114,13 +114,15 @@ def _read_items(args):
 def test_concurrent_reads_from_several_processes(seed_folder):
     ds = FrameDataset(seed_folder)
     expected = [float(ds[i]["depth"][np.isfinite(ds[i]["depth"])].sum()) for i in range(len(ds))]
-    ds.scenes[0]["orbit"].visible_tracks(0)  # the HDF5 handle is open in this process before forking
-    with mp.get_context("fork").Pool(3) as pool:
+    ds.scenes[0]["orbit"].visible_tracks(0)  # the HDF5 handle is open in this process
+    # spawn, not fork: this test process runs threads (open3d), and forking it may deadlock
+    with mp.get_context("spawn").Pool(3) as pool:
         got = pool.map(_read_items, [(seed_folder, list(range(len(ds))))] * 6)
     assert all(g == expected for g in got)
-    # a dataset object made here and read in forked workers (as DataLoader does)
+    # a dataset object made here, used here (files open), then pickled to workers (as DataLoader does)
     clips = ClipDataset(seed_folder, length=2)
-    with mp.get_context("fork").Pool(2) as pool:
+    clips[0]
+    with mp.get_context("spawn").Pool(2) as pool:
         counts = pool.map(_clip_ids, [(clips, i) for i in range(len(clips))] * 2)
     assert counts == [len(clips[i]["tracks"]["ids"]) for i in range(len(clips))] * 2
 
