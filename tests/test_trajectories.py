@@ -154,3 +154,21 @@ def test_walk_matches_the_simulators_own_moves(tmp_path):
     for k, action in enumerate(traj.actions):
         calls[action]()
         np.testing.assert_allclose(sim.get_world_from_camera(), traj.poses[k + 1], atol=1e-9)
+
+
+def test_bounded_walks_stay_in_their_box(checker):
+    from trajectories import BoundedChecker
+
+    lo, hi = np.array([-10.0, -45.0, 1.0]), np.array([30.0, -25.0, 3.0])
+    bounded = BoundedChecker(checker, lo, hi)
+    for walk in (random_walk, modified_random_walk):
+        traj = walk(bounded, _start(), 300, np.random.default_rng(3), step=1.5, angle=20)
+        p = traj.positions
+        assert np.all(p >= lo) and np.all(p <= hi)
+        assert np.ptp(p[:, 0]) > 5  # it does move around inside
+        _assert_swept_free(checker.geometry, p)
+    # unbounded, the same modified walk leaves that box (the wall is not a wall for it)
+    free = modified_random_walk(checker, _start(), 300, np.random.default_rng(3), step=1.5, angle=20)
+    assert not np.all((free.positions >= lo) & (free.positions <= hi))
+    with pytest.raises(ValueError, match="lo <= hi"):
+        BoundedChecker(checker, hi, lo)

@@ -2,12 +2,12 @@
 (``can_move``, ``is_free``; the Simulator implements both) and returns a
 :class:`Trajectory` of OpenCV world_from_camera poses with timestamps."""
 
-from .base import MotionChecker, Trajectory, TrajectoryError
+from .base import BoundedChecker, MotionChecker, Trajectory, TrajectoryError
 from .spline import spline_flythrough
 from .survey import lawnmower, orbit
 from .walks import ACTIONS, apply_action, modified_random_walk, random_walk
 
 KINDS = ("random_walk", "modified_random_walk", "orbit", "lawnmower", "spline")
 
-__all__ = ["ACTIONS", "KINDS", "MotionChecker", "Trajectory", "TrajectoryError", "apply_action", "lawnmower",
+__all__ = ["ACTIONS", "KINDS", "BoundedChecker", "MotionChecker", "Trajectory", "TrajectoryError", "apply_action", "lawnmower",
            "modified_random_walk", "orbit", "random_walk", "spline_flythrough"]

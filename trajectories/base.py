@@ -22,6 +22,27 @@ class MotionChecker(Protocol):
         """Does the camera sphere fit at ``position``?"""
 
 
+class BoundedChecker:
+    """A :class:`MotionChecker` that also keeps the camera inside an axis-aligned box
+    ``[lo, hi]`` (world metres), e.g. the site's camera spawn volume: planners that would
+    otherwise wander off an unbounded ground plane treat its faces as walls."""
+
+    def __init__(self, checker: MotionChecker, lo, hi):
+        self.checker, self.lo, self.hi = checker, np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+        if self.lo.shape != (3,) or self.hi.shape != (3,) or np.any(self.lo > self.hi):
+            raise ValueError(f"bounds must be two 3-vectors with lo <= hi, got {lo} and {hi}")
+
+    def inside(self, position) -> bool:
+        p = np.asarray(position, np.float64)
+        return bool(np.all(p >= self.lo) and np.all(p <= self.hi))
+
+    def can_move(self, start, end) -> bool:
+        return self.inside(end) and self.checker.can_move(start, end)
+
+    def is_free(self, position) -> bool:
+        return self.inside(position) and self.checker.is_free(position)
+
+
 class TrajectoryError(ValueError):
     """A trajectory cannot be planned or read."""
 

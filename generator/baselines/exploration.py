@@ -2,7 +2,9 @@
 
 Geometry only (no rendering): each pose's visible surface points come from
 ``Simulator.compute_point_cloud`` with points visible within ``max_depth`` metres (planar
-depth), the scene held at its first animation frame, as in the paper.
+depth), the scene held at its first animation frame, as in the paper. Runs start at a
+spawn point with a level camera (so 'forward' is horizontal) and stay inside the site's
+camera spawn volume (its faces count as obstacles; the ground plane is unbounded).
 """
 
 from __future__ import annotations
@@ -38,12 +40,13 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
                     angle: float = 22.5) -> dict:
     """Run both walks ``runs`` times on each seed's site; write trajectories, curves, plots
     and ``exploration.json`` into ``out``; return the results."""
-    from trajectories import Trajectory, modified_random_walk, random_walk
+    from trajectories import BoundedChecker, modified_random_walk, random_walk
 
     from evaluation.coverage import coverage_auc
     from evaluation.report import coverage_plot
 
     from .. import Simulator
+    from ..geometry.camera import levelled
     from ..geometry.seeding import stream
     from ..scene import build_site, plan_site, site_params
     from ..scene.site_map import draw_map
@@ -53,6 +56,7 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
     results = {"task": "exploration", "parameters": {
         "seeds": seeds, "steps": steps, "runs": runs, "scene_preset": scene_preset, "max_depth_m": max_depth,
         "points_density_per_m2": points_density, "step_m": step, "turn_deg": angle, "frame": "first (static scene)",
+        "start": "random spawn point, random heading, level camera", "bounds": "camera spawn volume",
         "auc": "trapezoid over x normalised to [0, 1] across the steps + 1 poses (start included)",
         "std": "sample standard deviation (ddof=1) over the runs"}, "seeds": {}}
     bar = tqdm(total=len(seeds) * len(METHODS) * runs, desc="runs", unit="run")
@@ -61,12 +65,13 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
         site_dir = out / f"site_{seed}"
         site = build_site(seed, scene_preset, site_dir, preview=False)
         sim = Simulator(site.blend, points_density=points_density, seed=seed, max_pcl_depth=max_depth)
-        starts = [sim.respawn_camera() for _ in range(runs)]  # both methods start from the same poses
+        starts = [levelled(sim.respawn_camera()) for _ in range(runs)]  # both methods start from the same poses
+        checker = BoundedChecker(sim, sim.spawn_points.min(axis=0), sim.spawn_points.max(axis=0))
         curves = {m: [] for m in METHODS}
         trajectories = {}
         for method in METHODS:
             for r in range(runs):
-                traj = walks[method](sim, starts[r], steps, stream(seed, "baseline-exploration", method, r),
+                traj = walks[method](checker, starts[r], steps, stream(seed, "baseline-exploration", method, r),
                                      step=step, angle=angle)
                 traj.save(site_dir / f"{method}_run{r:02d}.npz")
                 curves[method].append(coverage_along(sim, traj.poses))

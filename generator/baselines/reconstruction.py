@@ -4,7 +4,8 @@ with the evaluation package against the labelled ground-truth cloud.
 
 Depth and labels come from Cycles at 1 sample per pixel (both passes are exact at the pixel
 centre and do not need more samples; RGB is not used). The scene is held at its first
-animation frame, as in the paper.
+animation frame, as in the paper. The walk starts level at a spawn point and stays in the
+camera spawn volume, as in the exploration baseline.
 """
 
 from __future__ import annotations
@@ -29,10 +30,11 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     from evaluation.inputs import Cloud
     from exporters.ground_truth import sample_scoring_points
     from exporters.ply import write_ply
-    from trajectories import random_walk
+    from trajectories import BoundedChecker, random_walk
 
     from .. import Simulator
     from ..batch.worker import write_scene_ground_truth
+    from ..geometry.camera import levelled
     from ..geometry.seeding import stream
     from ..scene import build_site
     from .voxels import VoxelMap
@@ -42,8 +44,9 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     site = build_site(seed, scene_preset, out / "site", preview=False)
     sim = Simulator(site.blend, points_density=0.5, seed=seed)
     sim.configure_render(samples=1, denoise=False, resolution=tuple(resolution))
-    start = sim.respawn_camera()
-    traj = random_walk(sim, start, steps, stream(seed, "baseline-reconstruction"), step=step, angle=angle)
+    start = levelled(sim.respawn_camera())
+    checker = BoundedChecker(sim, sim.spawn_points.min(axis=0), sim.spawn_points.max(axis=0))
+    traj = random_walk(checker, start, steps, stream(seed, "baseline-reconstruction"), step=step, angle=angle)
     traj.save(out / "trajectory.npz")
     vmap = VoxelMap(voxel)
     t_walk = time.perf_counter()

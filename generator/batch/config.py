@@ -39,7 +39,9 @@ class RunConfig:
 
 def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndarray, seed: int, frames: int, fps: float):
     """A trajectory of ``kind`` over a site whose flyable space is given by its spawn points."""
-    from trajectories import lawnmower, modified_random_walk, orbit, random_walk, spline_flythrough
+    from trajectories import BoundedChecker, lawnmower, modified_random_walk, orbit, random_walk, spline_flythrough
+
+    from ..geometry.camera import levelled
 
     from ..geometry.seeding import stream
 
@@ -59,4 +61,5 @@ def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndar
     walk = {"random_walk": random_walk, "modified_random_walk": modified_random_walk}.get(kind)
     if walk is None:
         raise ValueError(f"unknown trajectory kind {kind!r}")
-    return walk(checker, start, frames - 1, rng, step=1.0, angle=15.0, fps=fps)
+    # level camera ('forward' is horizontal), kept inside the flyable volume
+    return walk(BoundedChecker(checker, lo, hi), levelled(start), frames - 1, rng, step=1.0, angle=15.0, fps=fps)

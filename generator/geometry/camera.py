@@ -215,6 +215,12 @@ def heading_pose(position, yaw: float, pitch: float) -> np.ndarray:
     return m
 
 
+def levelled(pose: np.ndarray) -> np.ndarray:
+    """The same position and heading with the camera level (zero pitch and roll)."""
+    forward = np.asarray(pose)[:3, 2]
+    return heading_pose(np.asarray(pose)[:3, 3], float(np.arctan2(forward[1], forward[0])), 0.0)
+
+
 def look_at(eye, target) -> np.ndarray:
     """world_from_camera at ``eye`` looking at ``target`` with zero roll (not straight down)."""
     d = np.asarray(target, dtype=np.float64) - np.asarray(eye, dtype=np.float64)
