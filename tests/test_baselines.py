@@ -51,10 +51,15 @@ def test_reconstruction_points_lie_on_the_scene(tmp_path):
     from exporters.ply import read_ply
     from generator.geometry.o3d import import_open3d
 
-    r = baselines("reconstruction", "--seed", "3", "--steps", "3", "--scene-preset", "small", "--resolution", "64x48",
-                  "--gt-density", "20", "--out", tmp_path)
+    args = ["reconstruction", "--seed", "3", "--steps", "3", "--scene-preset", "small", "--resolution", "64x48",
+            "--gt-density", "20"]
+    r = baselines(*args, "--out", tmp_path)
     assert r.returncode == 0, r.stderr[-2000:]
     res = json.loads((tmp_path / "reconstruction.json").read_text())
+    again = baselines(*args, "--out", tmp_path / "again")
+    assert again.returncode == 0
+    res2 = json.loads((tmp_path / "again" / "reconstruction.json").read_text())
+    assert res2["scores"]["gt_density_20"]["metrics"] == res["scores"]["gt_density_20"]["metrics"]  # reproducible
     m = res["scores"]["gt_density_20"]["metrics"]
     assert res["predicted_points"] > 100 and 0 < m["semantic"]["semantic_chamfer_pred_to_gt"] <= 1
     pred = read_ply(tmp_path / "prediction.ply")

@@ -101,7 +101,7 @@ def table(results: dict) -> str:
     lines = ["| seed | random walk AUC | modified random walk AUC | paper: random | paper: modified |", "|---|---|---|---|---|"]
     for seed, r in results["seeds"].items():
         paper = [r[m]["paper_auc"] for m in METHODS]
-        cells = [f"{r[m]['auc_mean']:.2f} ± {r[m]['auc_std']:.2f}" for m in METHODS]
+        cells = [f"{r[m]['auc_mean']:.3f} ± {r[m]['auc_std']:.3f}" for m in METHODS]
         cells += [f"{p[0]:.2f} ± {p[1]:.2f}" if p else "-" for p in paper]
         lines.append(f"| {seed} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
