@@ -91,8 +91,10 @@ def crop_to_bounds(cloud: Cloud, bounds: np.ndarray, margin: float) -> Cloud:
 def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: float = DEFAULT_TAU,
                          sweep: tuple[float, ...] = DEFAULT_SWEEP, crop: bool = False, crop_margin: float | None = None,
                          voxel: float | None = None, pred_labels: str | Path | None = None,
-                         include_dynamic: bool = True) -> tuple[dict, dict]:
+                         include_dynamic: bool = True, label_names: list[str] | None = None) -> tuple[dict, dict]:
     """Score a predicted cloud against the ground truth (files or :class:`Cloud` s).
+    ``label_names``: the label table (default: the one stored with the GT, else the
+    generator's taxonomy).
 
     Returns (results, context): results is the JSON document (metrics, parameters,
     versions); context holds the arrays used (for the coloured PLY)."""
@@ -101,9 +103,10 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
     if voxel is not None and not (np.isfinite(voxel) and voxel > 0):
         raise InputError(f"voxel must be a positive number of metres, got {voxel}")
     if isinstance(gt, Cloud):
-        gt_cloud, names = gt, None
+        gt_cloud, names = gt, label_names
     else:
         gt_cloud, names = load_gt_cloud(gt, include_dynamic)
+        names = label_names or names
     if names is None:
         from generator.scene.taxonomy import CLASSES
 

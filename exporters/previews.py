@@ -10,17 +10,24 @@ from PIL import Image, ImageDraw
 from .palette import colorize_labels
 
 
+# an inferno-like ramp: near (0) bright yellow -> orange -> magenta -> far (1) dark blue
+_RAMP = np.array([[252, 255, 164], [250, 193, 39], [245, 125, 21], [212, 72, 66], [159, 42, 99],
+                  [101, 21, 110], [40, 11, 84], [0, 0, 40]], np.float64)
+
+
 def colorize_depth(depth: np.ndarray, far: float | None = None) -> np.ndarray:
-    """(H, W, 3) uint8: near = bright yellow, far = dark blue, no surface = black. ``far``
-    defaults to the 98th percentile of the finite depths."""
+    """(H, W, 3) uint8: near = bright yellow, far = dark blue (square-root scale up to
+    ``far``), no surface = black. ``far`` defaults to the 98th percentile of the finite depths."""
     finite = np.isfinite(depth)
     if not finite.any():
         return np.zeros(depth.shape + (3,), np.uint8)
     far = far or float(np.percentile(depth[finite], 98)) or 1.0
-    s = np.clip(np.where(finite, depth, far) / far, 0, 1) ** 0.5
-    rgb = np.stack([1 - s, 0.85 * (1 - s) + 0.1, 0.25 + 0.4 * s], axis=-1)
+    s = np.clip(np.where(finite, depth, far) / far, 0, 1) ** 0.5 * (len(_RAMP) - 1)
+    k = np.minimum(s.astype(np.int64), len(_RAMP) - 2)
+    t = (s - k)[..., None]
+    rgb = _RAMP[k] * (1 - t) + _RAMP[k + 1] * t
     rgb[~finite] = 0
-    return (rgb * 255 + 0.5).astype(np.uint8)
+    return (rgb + 0.5).astype(np.uint8)
 
 
 def contact_sheet(path: str | Path, frames: list[dict], labels: list[str], max_width: int = 320) -> Path:

@@ -280,7 +280,9 @@ def test_same_seed_same_points_across_processes(walls):
 def test_bpy_free_packages_do_not_import_bpy():
     code = (
         "import sys, generator, generator.geometry.visibility, generator.geometry.collision, "
-        "generator.geometry.spawn, generator.geometry.surface_points, trajectories, exporters, evaluation, datasets\n"
+        "generator.geometry.spawn, generator.geometry.surface_points, trajectories, exporters, evaluation, datasets, "
+        "exporters.ground_truth, exporters.nerfstudio, exporters.previews, exporters.tracks, exporters.colmap, "
+        "evaluation.api, evaluation.report, datasets.tasks, generator.cli_args, generator.batch.config\n"
         "assert 'bpy' not in sys.modules, 'bpy was imported'\n"
         "import bpy\n"  # and bpy still imports after open3d was loaded by our helper
         "print('ok')"

@@ -67,8 +67,7 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     for density in gt_densities:
         gt = sample_scoring_points(parts, label_ids, density, seed)
         gt_cloud = Cloud(gt["xyz"], gt["label"].astype(np.int64), f"scoring cloud, {density:g} points/m^2")
-        res, ctx = score_reconstruction(pred, gt_cloud, tau=tau)
-        res["labels"] = sim.labels
+        res, ctx = score_reconstruction(pred, gt_cloud, tau=tau, label_names=sim.labels)
         scores[f"gt_density_{density:g}"] = res
         if density == gt_densities[0]:
             colour_ply(out / "figure9.ply", ctx, tau)
