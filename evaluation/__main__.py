@@ -36,6 +36,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     c.add_argument("--trajectory", type=Path, required=True, help="trajectory .npz (generator) or COLMAP model folder")
     c.add_argument("--frames", choices=["auto", "timestamps", "first"], default="auto",
                    help="animation frame per pose: from timestamps (auto, when present) or the first frame")
+    c.add_argument("--max-depth", type=positive_float("a positive number of metres"),
+                   help="points count as seen within this planar depth (default: the generator's, in scene.h5)")
     c.add_argument("--json", type=Path, help="write the curve, AUC, parameters and versions here")
     c.add_argument("--plot", type=Path, help="write a PNG of the coverage curve")
     return p.parse_args(argv)
@@ -67,7 +69,8 @@ def main(argv=None) -> int:
             from tqdm import tqdm
 
             results = score_coverage(args.gt, args.trajectory, args.frames,
-                                     progress=lambda it: tqdm(it, desc="poses", leave=False, file=sys.stderr))
+                                     progress=lambda it: tqdm(it, desc="poses", leave=False, file=sys.stderr),
+                                     max_depth=args.max_depth)
             print(coverage_table(results))
             if args.plot:
                 coverage_plot(args.plot, {Path(str(args.trajectory)).name: results["coverage"]},

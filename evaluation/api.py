@@ -164,8 +164,10 @@ def colour_ply(path: str | Path, context: dict, tau: float) -> Path:
                                              "1 = wrong label (orange), 2 = unmatched (red)"])
 
 
-def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str = "auto", progress=None) -> dict:
-    """Coverage curve of a trajectory over a seed folder's ground truth (see coverage.py)."""
+def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str = "auto", progress=None,
+                   max_depth: float | None = None) -> dict:
+    """Coverage curve of a trajectory over a seed folder's ground truth (see coverage.py).
+    ``max_depth``: visibility limit in metres (planar depth); default: the generator's."""
     gt = Path(gt)
     if not gt.exists():
         raise InputError(f"{gt}: no such file or folder")
@@ -176,7 +178,14 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
         scene = read_ground_truth(folder)
     except GroundTruthError as exc:
         raise InputError(str(exc)) from None
+    if max_depth is not None:
+        if not (np.isfinite(max_depth) and max_depth > scene.near):
+            raise InputError(f"max depth must be a number of metres above {scene.near}, got {max_depth}")
+        scene.far = float(max_depth)
     poses = trajectory if isinstance(trajectory, Poses) else read_poses(trajectory, scene, frames)
+    clamped = 0
+    if poses.frames is not None:
+        clamped = int(np.count_nonzero((poses.frames < scene.frames[0]) | (poses.frames > scene.frames[-1])))
     t0 = time.perf_counter()
     scorer = CoverageScorer(scene)
     curve, observed = scorer.curve(poses, progress)
@@ -184,6 +193,8 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
     return {
         "task": "coverage",
         "parameters": {"gt": str(folder), "trajectory": poses.source, "frames": frames,
+                       "poses_outside_the_animation": clamped,
+                       "animation_frames": [int(scene.frames[0]), int(scene.frames[-1])],
                        "near": scene.near, "far": scene.far, "far_units": "metres, planar depth",
                        "camera": {"K": (scene.K if poses.K is None else poses.K).tolist(),
                                   "width": scene.width if poses.width is None else poses.width,

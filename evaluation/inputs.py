@@ -83,6 +83,8 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
     or text (x y z [label] per line). ``labels_path``: a separate file with one label per
     point (text or NPY); labels may be ids or, with ``label_names``, class names."""
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; give a point cloud file (PLY, NPY, NPZ or text)")
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     suffix = path.suffix.lower()
@@ -149,13 +151,12 @@ def _label_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.nd
     if labels.ndim != 1:
         raise InputError(f"{path}: labels must be one value per point, got shape {labels.shape}")
     if labels.dtype.kind in "US":
-        try:
-            return labels.astype(np.float64).astype(np.int64) if _all_numeric(labels) else _names_to_ids(labels, names, path)
-        except ValueError:
-            return _names_to_ids(labels, names, path)
+        if _all_numeric(labels):
+            return _label_ids(labels.astype(np.float64), names, path)
+        return _names_to_ids(labels, names, path)
     if labels.dtype.kind == "f":
-        if not np.isfinite(labels).all() or np.any(labels != np.round(labels)):
-            raise InputError(f"{path}: labels must be integer ids or class names")
+        if not np.isfinite(labels).all() or np.any(labels != np.round(labels)) or np.abs(labels).max(initial=0) >= 2 ** 31:
+            raise InputError(f"{path}: labels must be integer ids (-1 = unlabelled) or class names")
     if labels.dtype.kind not in "iuf":
         raise InputError(f"{path}: labels must be integer ids or class names (dtype {labels.dtype})")
     return labels.astype(np.int64)

@@ -55,7 +55,9 @@ def coverage_table(results: dict) -> str:
         f"  AUC            {results['auc']:.4f}",
         f"  final coverage {results['final_coverage']:.4f}",
         "  curve          " + ", ".join(f"pose {i}: {c[i]:.4f}" for i in marks),
-    ])
+    ] + ([f"  note: {results['parameters']['poses_outside_the_animation']} poses fall after the recorded animation "
+          "and see its last frame (use --frames first for a static scene)"]
+         if results["parameters"].get("poses_outside_the_animation") else []))
 
 
 def write_atomic(path: str | Path, data: bytes) -> Path:

@@ -194,6 +194,8 @@ def _bad_inputs(folder, tmp):
     (tmp / "label.txt").write_text("0 0 0 3\n1 1 1 99\n")
     (tmp / "labels_short.txt").write_text("1\n2\n")
     (tmp / "names.txt").write_text("0 0 0 Building\n1 1 1 Unicorn\n")
+    (tmp / "huge_label.txt").write_text("0 0 0 1e40\n")
+    (tmp / "a_folder").mkdir()
     write_ply(tmp / "trunc.ply", {"x": np.zeros(10, np.float32), "y": np.zeros(10, np.float32), "z": np.zeros(10, np.float32)})
     data = (tmp / "trunc.ply").read_bytes()
     (tmp / "trunc.ply").write_bytes(data[:-7])
@@ -216,6 +218,8 @@ def _bad_inputs(folder, tmp):
         (rec + [tmp / "label.txt"], "outside the taxonomy"),
         (rec + [good, "--pred-labels", tmp / "labels_short.txt"], "2 labels for 20 points"),
         (rec + [tmp / "names.txt"], "unknown class name 'Unicorn'"),
+        (rec + [tmp / "huge_label.txt"], "labels must be integer ids"),
+        (rec + [tmp / "a_folder"], "is a folder"),
         (["reconstruction", "--gt", incomplete, "--pred", good], "missing scene.h5"),
         (["reconstruction", "--gt", no_manifest, "--pred", good], "incomplete seed folder"),
         (["reconstruction", "--gt", folder, "--pred", good, "--tau", "-1"], "positive number"),
@@ -232,3 +236,12 @@ def test_bad_input_one_line_exit_2_nothing_written(seed_folder, tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (args, r.stderr)
         assert "Traceback" not in r.stderr and not out.exists()
+
+
+def test_coverage_max_depth_override(seed_folder):
+    traj = seed_folder / "orbit" / "trajectory.npz"
+    full = score_coverage(seed_folder, traj)
+    near = score_coverage(seed_folder, traj, max_depth=25.0)
+    assert near["parameters"]["far"] == 25.0 and full["parameters"]["far"] == 60.0
+    assert np.all(np.array(near["coverage"]) <= np.array(full["coverage"]))
+    assert near["final_coverage"] < full["final_coverage"]
