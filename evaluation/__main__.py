@@ -2,6 +2,7 @@
 
   python -m evaluation reconstruction --gt SEED_FOLDER|GT.ply --pred CLOUD [--tau 0.1] [--json out.json] ...
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
+  python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
 
 Bad input: one line on stderr, exit code 2, nothing written.
 """
@@ -11,7 +12,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from generator.cli_args import OneLineParser, positive_float
+from generator.cli_args import OneLineParser, positive_float, resolution
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -40,6 +41,13 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="points count as seen within this planar depth (default: the generator's, in scene.h5)")
     c.add_argument("--json", type=Path, help="write the curve, AUC, parameters and versions here")
     c.add_argument("--plot", type=Path, help="write a PNG of the coverage curve")
+    k = sub.add_parser("tracks", help="score point tracks on a trajectory's TAP-Vid query subset")
+    k.add_argument("--gt", type=Path, required=True, help="a trajectory's tracks.h5 (or its folder)")
+    k.add_argument("--pred", type=Path, required=True, help="NPZ with tracks (Q, T, 2) (x, y) and occluded (Q, T)")
+    k.add_argument("--query-mode", choices=["first", "strided"], default="first",
+                   help="evaluate the frames after each query (first) or all but the query frame (strided)")
+    k.add_argument("--resize-to", type=resolution, help="scale positions to WxH first (TAP-Vid uses 256x256)")
+    k.add_argument("--json", type=Path, help="write the scores, parameters and versions here")
     return p.parse_args(argv)
 
 
@@ -52,9 +60,9 @@ def _check_output(path: Path | None) -> None:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    from .api import colour_ply, score_coverage, score_reconstruction
+    from .api import colour_ply, score_coverage, score_reconstruction, score_tracks
     from .inputs import InputError
-    from .report import coverage_plot, coverage_table, reconstruction_table, write_json
+    from .report import coverage_plot, coverage_table, reconstruction_table, tracks_table, write_json
 
     try:
         for out in (getattr(args, "json", None), getattr(args, "ply", None), getattr(args, "plot", None)):
@@ -65,6 +73,9 @@ def main(argv=None) -> int:
             print(reconstruction_table(results))
             if args.ply:
                 colour_ply(args.ply, ctx, args.tau)
+        elif args.task == "tracks":
+            results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)
+            print(tracks_table(results))
         else:
             from tqdm import tqdm
 

@@ -60,6 +60,17 @@ def coverage_table(results: dict) -> str:
          if results["parameters"].get("poses_outside_the_animation") else []))
 
 
+def tracks_table(results: dict) -> str:
+    m = results["metrics"]
+    return "\n".join([
+        f"tracks: {m['num_queries']} queries x {m['num_frames']} frames, query mode {m['query_mode']}"
+        + (f", positions scaled to {m['resize_to'][0]}x{m['resize_to'][1]}" if m["resize_to"] else ""),
+        f"  occlusion accuracy   {m['occlusion_accuracy']:.4f}",
+        f"  <delta avg           {m['average_pts_within']:.4f}   (" + ", ".join(f"<{k} px {v:.3f}" for k, v in m["pts_within"].items()) + ")",
+        f"  Average Jaccard      {m['average_jaccard']:.4f}   (" + ", ".join(f"{k} px {v:.3f}" for k, v in m["jaccard"].items()) + ")",
+    ])
+
+
 def write_atomic(path: str | Path, data: bytes) -> Path:
     """Write through a temporary file renamed into place (never a half-written file)."""
     path = Path(path)

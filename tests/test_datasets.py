@@ -152,3 +152,15 @@ def test_clear_errors(seed_folder, tmp_path):
     (copy / "manifest.json").unlink()
     with pytest.raises(DatasetError, match="not a complete seed folder"):
         Scene(copy)
+
+
+def test_as_tensor_needs_torch_or_gives_tensors(seed_folder):
+    ds = FrameDataset(seed_folder, as_tensor=True)
+    try:
+        import torch
+    except ImportError:
+        with pytest.raises(DatasetError, match="needs PyTorch"):
+            ds[0]
+        return
+    item = ds[0]
+    assert isinstance(item["rgb"], torch.Tensor) and item["rgb"].dtype == torch.float32

@@ -245,3 +245,46 @@ def test_coverage_max_depth_override(seed_folder):
     assert near["parameters"]["far"] == 25.0 and full["parameters"]["far"] == 60.0
     assert np.all(np.array(near["coverage"]) <= np.array(full["coverage"]))
     assert near["final_coverage"] < full["final_coverage"]
+
+
+# ---- point tracks (TAP-Vid conventions) -------------------------------------------------------
+
+def test_tapvid_metrics_by_hand():
+    from evaluation import tapvid_metrics
+
+    # 2 queries, 4 frames; query frames 0 and 1 ('first' mode evaluates the frames after them)
+    gt = np.zeros((2, 4, 2))
+    occ = np.array([[False, False, True, False], [True, False, False, False]])
+    pred = gt + [3.0, 0.0]  # every prediction 3 px off
+    pred_occ = occ.copy()
+    m = tapvid_metrics(gt, occ, pred, pred_occ, np.array([0, 1]))
+    # evaluated: q0 frames 1, 2, 3 (2 visible), q1 frames 2, 3 (both visible): 4 visible pairs
+    assert m["occlusion_accuracy"] == 1.0
+    assert m["pts_within"] == {"1": 0.0, "2": 0.0, "4": 1.0, "8": 1.0, "16": 1.0}
+    assert m["average_pts_within"] == pytest.approx(0.6)
+    # delta <= 2: 0 TP, 4 FN, 4 FP (visible but too far) -> 0; delta >= 4: 4 TP -> 1
+    assert m["jaccard"] == {"1": 0.0, "2": 0.0, "4": 1.0, "8": 1.0, "16": 1.0}
+    # predict q1 occluded at frame 3 (it is visible): one FN at every delta
+    pred_occ[1, 3] = True
+    m = tapvid_metrics(gt, occ, pred, pred_occ, np.array([0, 1]))
+    assert m["occlusion_accuracy"] == pytest.approx(4 / 5)
+    assert m["jaccard"]["4"] == pytest.approx(3 / 4)  # TP 3, FN 1, FP 0
+    assert m["pts_within"]["4"] == 1.0  # <delta ignores predicted occlusion
+    # strided mode also evaluates the frames before the query; TAP-Vid's 256x256 scaling halves the offsets here
+    s = tapvid_metrics(gt, occ, pred, occ, np.array([0, 1]), mode="strided", image_size=(512, 512), resize_to=(256, 256))
+    assert s["pts_within"]["2"] == 1.0 and s["pts_within"]["1"] == 0.0
+
+
+def test_tracks_cli_on_the_real_subset(seed_folder, tmp_path):
+    from exporters.tracks import read_tracks
+
+    tv = read_tracks(seed_folder / "orbit" / "tracks.h5")["tapvid"]
+    np.savez(tmp_path / "perfect.npz", tracks=tv["tracks"], occluded=tv["occluded"])
+    r = cli("tracks", "--gt", seed_folder / "orbit", "--pred", tmp_path / "perfect.npz", "--json", tmp_path / "t.json")
+    assert r.returncode == 0, r.stderr
+    m = json.loads((tmp_path / "t.json").read_text())["metrics"]
+    assert m["occlusion_accuracy"] == m["average_jaccard"] == m["average_pts_within"] == 1.0
+    np.savez(tmp_path / "short.npz", tracks=tv["tracks"][:, :2], occluded=tv["occluded"][:, :2])
+    r = cli("tracks", "--gt", seed_folder / "orbit", "--pred", tmp_path / "short.npz", "--json", tmp_path / "bad.json")
+    assert r.returncode == 2 and "expected" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad.json").exists()
