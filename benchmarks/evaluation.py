@@ -113,13 +113,12 @@ def run_isolated(name: str, n: int):
 
 def coverage_benchmark(points: int, poses: int) -> None:
     from generator import Simulator  # bpy first
-    from generator.batch.worker import write_scene_ground_truth
     from generator.geometry.sampling import triangle_areas
     from generator.scene import build_site
     from trajectories import random_walk
 
     from evaluation.coverage import CoverageScorer, Poses
-    from exporters.ground_truth import read_ground_truth
+    from exporters.ground_truth import read_ground_truth, write_simulator_ground_truth
     from generator.geometry.seeding import stream
 
     tmp = Path(tempfile.mkdtemp())
@@ -127,7 +126,7 @@ def coverage_benchmark(points: int, poses: int) -> None:
     probe = Simulator(site.blend, points_density=0.01, seed=0)
     area = sum(triangle_areas(p.vertices, p.faces).sum() for p in probe.scene_parts())
     sim = Simulator(site.blend, points_density=points / area, seed=0, max_pcl_depth=20.0)
-    write_scene_ground_truth(sim, tmp, 0, scoring_density=1.0)
+    write_simulator_ground_truth(sim, tmp / "ground_truth", 0, scoring_density=1.0)
     traj = random_walk(sim, sim.respawn_camera(), poses - 1, stream(0, "bench"), step=1.0, angle=15.0)
     scene = read_ground_truth(tmp)
     t0 = time.perf_counter()

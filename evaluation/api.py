@@ -3,7 +3,6 @@ or on arrays (for a training loop)."""
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -14,7 +13,8 @@ from exporters.manifest import read_manifest
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
 from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
-from .metrics import DEFAULT_SWEEP, DEFAULT_TAU, match_categories, nearest, reconstruction_metrics, voxel_downsample
+from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, match_categories, reconstruction_metrics,
+                      voxel_downsample)
 
 
 def versions() -> dict:
@@ -47,33 +47,16 @@ def load_gt_cloud(path: str | Path, include_dynamic: bool = True) -> tuple[Cloud
     beside it, else the generator's taxonomy)."""
     path = Path(path)
     if path.is_dir():
-        gt = _seed_folder_gt(path)
-        cloud = read_cloud(gt / "points.ply")
-        names = _label_names_near(gt / "points.ply")
-        if not include_dynamic:
-            from exporters.ply import read_ply
-
-            static = read_ply(gt / "points.ply").vertex["dynamic"] == 0
-            cloud = Cloud(cloud.points[static], cloud.labels[static], cloud.source)
-        return cloud, names
-    if not path.exists():
+        path = _seed_folder_gt(path) / "points.ply"
+    elif not path.exists():
         raise InputError(f"{path}: no such file or folder")
     cloud = read_cloud(path)
-    return cloud, _label_names_near(path)
+    if not include_dynamic and cloud.dynamic is not None:
+        cloud = cloud.subset(~cloud.dynamic)
+    return cloud, cloud.names or _label_table_near(path)
 
 
-def _label_names_near(path: Path) -> list[str]:
-    if path.suffix.lower() == ".ply":
-        with open(path, "rb") as f:
-            for _ in range(64):
-                line = f.readline().decode("ascii", errors="replace").strip()
-                if line.startswith("comment labels "):
-                    try:
-                        return json.loads(line[len("comment labels "):])
-                    except ValueError:
-                        break
-                if line == "end_header":
-                    break
+def _label_table_near(path: Path) -> list[str]:
     for candidate in (path.parent / "labels.json", path.parent.parent / "labels.json"):
         if candidate.is_file():
             return read_label_table(candidate)
@@ -84,8 +67,7 @@ def _label_names_near(path: Path) -> list[str]:
 
 def crop_to_bounds(cloud: Cloud, bounds: np.ndarray, margin: float) -> Cloud:
     """Keep the points inside the axis-aligned box ``bounds`` (2, 3) grown by ``margin`` metres."""
-    keep = np.all((cloud.points >= bounds[0] - margin) & (cloud.points <= bounds[1] + margin), axis=1)
-    return Cloud(cloud.points[keep], None if cloud.labels is None else cloud.labels[keep], cloud.source)
+    return cloud.subset(np.all((cloud.points >= bounds[0] - margin) & (cloud.points <= bounds[1] + margin), axis=1))
 
 
 def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: float = DEFAULT_TAU,
@@ -128,8 +110,9 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
         pred_cloud, gt_cloud = Cloud(p, pl, pred_cloud.source), Cloud(g, gl, gt_cloud.source)
     labelled = pred_cloud.labels is not None and gt_cloud.labels is not None
     t0 = time.perf_counter()
+    nn = Neighbours.compute(pred_cloud.points, gt_cloud.points)
     metrics = reconstruction_metrics(pred_cloud.points, gt_cloud.points, pred_cloud.labels if labelled else None,
-                                     gt_cloud.labels if labelled else None, tau, tuple(sweep), names)
+                                     gt_cloud.labels if labelled else None, tau, tuple(sweep), names, neighbours=nn)
     seconds = time.perf_counter() - t0
     results = {
         "task": "reconstruction",
@@ -145,18 +128,21 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
         "versions": versions(),
         "seconds": seconds,
     }
-    return results, {"pred": pred_cloud, "gt": gt_cloud, "names": names}
+    match = match_categories(pred_cloud.labels, gt_cloud.labels, nn.d_gp, nn.i_gp, tau)
+    return results, {"pred": pred_cloud, "gt": gt_cloud, "names": names, "match": match}
+
+
+MATCH_COLOURS = np.array([[40, 90, 220], [245, 150, 30], [220, 30, 30]], np.uint8)  # matched, wrong label, unmatched
 
 
 def colour_ply(path: str | Path, context: dict, tau: float) -> Path:
     """The paper's figure 9: GT points coloured blue (a prediction within tau with the right
-    label), orange (within tau, wrong label), red (no prediction within tau)."""
+    label), orange (within tau, wrong label), red (no prediction within tau); ``context``
+    from :func:`score_reconstruction`."""
     from exporters.ply import write_ply
 
-    pred, gt = context["pred"], context["gt"]
-    d, i = nearest(gt.points, pred.points)
-    cat = match_categories(pred.labels, gt.labels, d, i, tau)
-    colours = np.array([[40, 90, 220], [245, 150, 30], [220, 30, 30]], np.uint8)[cat]
+    gt, cat = context["gt"], context["match"]
+    colours = MATCH_COLOURS[cat]
     vertex = {"x": gt.points[:, 0].astype(np.float32), "y": gt.points[:, 1].astype(np.float32),
               "z": gt.points[:, 2].astype(np.float32), "red": colours[:, 0], "green": colours[:, 1],
               "blue": colours[:, 2], "match": cat.astype(np.uint8)}

@@ -16,6 +16,7 @@ import numpy as np
 
 from exporters.ground_truth import GroundTruthScene
 from generator.geometry.raycast import SceneGeometry
+from generator.geometry.surface_points import SurfacePoints
 from generator.geometry.visibility import ViewLimits, visible_points
 
 from .inputs import InputError
@@ -49,12 +50,7 @@ class CoverageScorer:
         self.scene = scene
         self.geometry = SceneGeometry(scene.parts)
         s = scene.surface
-        self.local, self.local_normals, self.part = s["local"], s["local_normals"], s["part"].astype(np.int64)
-        self.slot = np.full(len(scene.parts), -1, np.int64)  # part index -> row of scene.matrices[f]
-        self.slot[scene.dynamic_parts] = np.arange(len(scene.dynamic_parts))
-        self.dynamic_points = np.flatnonzero(self.slot[self.part] >= 0)
-        self.world = self.local.copy()
-        self.world_normals = self.local_normals.copy()
+        self.points = SurfacePoints.from_arrays(self.geometry.parts, s["local"], s["local_normals"], s["part"], s["label"])
         self._frame = None
 
     def set_frame(self, frame: int) -> None:
@@ -62,28 +58,24 @@ class CoverageScorer:
         if frame == self._frame:
             return
         self.geometry.set_matrices(self.scene.matrices_at(frame))
-        idx = self.dynamic_points
-        if len(idx):
-            m = self.scene.matrices[self.scene.frame_index(frame)][self.slot[self.part[idx]]]
-            r, t = m[:, :3, :3], m[:, :3, 3]
-            self.world[idx] = np.einsum("nij,nj->ni", r, self.local[idx]) + t
-            self.world_normals[idx] = np.einsum("nij,nj->ni", r, self.local_normals[idx])
+        self.points.update(self.geometry.parts)
         self._frame = frame
 
     def visible(self, world_from_camera: np.ndarray, K: np.ndarray, width: int, height: int,
                 frame: int | None = None) -> np.ndarray:
         """(N,) bool: surface points visible from one pose at ``frame`` (default: the first)."""
         self.set_frame(int(self.scene.frames[0]) if frame is None else int(frame))
-        return visible_points(self.geometry, self.world, self.world_normals, self.part, np.asarray(world_from_camera, np.float64),
-                              np.asarray(K, np.float64), int(width), int(height),
-                              ViewLimits(self.scene.near, self.scene.far))
+        pts = self.points
+        return visible_points(self.geometry, pts.world, pts.world_normals, pts.part,
+                              np.asarray(world_from_camera, np.float64), np.asarray(K, np.float64), int(width),
+                              int(height), ViewLimits(self.scene.near, self.scene.far))
 
     def curve(self, poses: Poses, progress=None) -> tuple[np.ndarray, np.ndarray]:
         """Coverage after each pose (T,) and the observed mask (N,)."""
         K = self.scene.K if poses.K is None else poses.K
         w = self.scene.width if poses.width is None else poses.width
         h = self.scene.height if poses.height is None else poses.height
-        observed = np.zeros(len(self.local), bool)
+        observed = np.zeros(len(self.points), bool)
         out = np.empty(len(poses.world_from_camera))
         it = range(len(out)) if progress is None else progress(range(len(out)))
         for t in it:

@@ -19,14 +19,23 @@ class InputError(ValueError):
 
 @dataclass
 class Cloud:
-    """``points`` (N, 3) float64 metres; ``labels`` (N,) int64 label ids or None."""
+    """``points`` (N, 3) float64 metres; ``labels`` (N,) int64 label ids or None;
+    ``names``: the label table the file states (a PLY ``comment labels [...]``), if any;
+    ``dynamic`` (N,) bool: on a moving object (our ground-truth PLY), if known."""
 
     points: np.ndarray
     labels: np.ndarray | None
     source: str
+    names: list[str] | None = None
+    dynamic: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points)
+
+    def subset(self, keep: np.ndarray) -> "Cloud":
+        """The points selected by a boolean mask or index array."""
+        pick = (lambda a: None if a is None else a[keep])
+        return Cloud(self.points[keep], pick(self.labels), self.source, self.names, pick(self.dynamic))
 
 
 CLOUD_SUFFIXES = (".ply", ".npy", ".npz", ".txt", ".xyz", ".csv", ".pts")
@@ -64,7 +73,7 @@ def _split_columns(table: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarra
     return table[:, :3], (table[:, 3] if table.shape[1] == 4 else None)
 
 
-def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, str | None]:
+def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, list[str] | None, np.ndarray | None]:
     try:
         d = read_ply(path)
     except PlyError as exc:
@@ -73,8 +82,12 @@ def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, str | No
     names = None
     for c in d.comments:  # our own files name their label table
         if c.startswith("labels "):
-            names = c[7:]
-    return d.points, label, names
+            try:
+                names = json.loads(c[7:])
+            except ValueError:
+                names = None
+    dynamic = d.vertex["dynamic"].astype(bool) if "dynamic" in d.vertex else None
+    return d.points, label, names, dynamic
 
 
 def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_names: list[str] | None = None) -> Cloud:
@@ -88,10 +101,10 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     suffix = path.suffix.lower()
-    labels = None
+    labels = file_names = dynamic = None
     try:
         if suffix == ".ply":
-            points, labels, _ = _read_ply_cloud(path)
+            points, labels, file_names, dynamic = _read_ply_cloud(path)
         elif suffix == ".npy":
             points, labels = _split_columns(np.load(path, allow_pickle=False), path)
         elif suffix == ".npz":
@@ -130,8 +143,8 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
         if len(labels) != len(points):
             raise InputError(f"{labels_path}: {len(labels)} labels for {len(points)} points; give one label per point")
     if labels is not None:
-        labels = _label_ids(np.asarray(labels), label_names, path if labels_path is None else Path(labels_path))
-    return Cloud(points, labels, str(path))
+        labels = _label_ids(np.asarray(labels), label_names or file_names, path if labels_path is None else Path(labels_path))
+    return Cloud(points, labels, str(path), file_names, dynamic)
 
 
 def _read_label_file(path: Path) -> np.ndarray:

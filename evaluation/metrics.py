@@ -8,8 +8,12 @@ paper-compatibility block.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
+
+from generator.geometry.voxels import majority_labels
 
 DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
@@ -45,6 +49,21 @@ def nearest_manhattan(source: np.ndarray, target: np.ndarray, euclidean_index: n
     return out
 
 
+@dataclass
+class Neighbours:
+    """Nearest neighbours both ways: distances (metres) and indices, prediction -> GT
+    (``d_pg``, ``i_pg``, one per predicted point) and GT -> prediction (``d_gp``, ``i_gp``)."""
+
+    d_pg: np.ndarray
+    i_pg: np.ndarray
+    d_gp: np.ndarray
+    i_gp: np.ndarray
+
+    @classmethod
+    def compute(cls, pred: np.ndarray, gt: np.ndarray) -> "Neighbours":
+        return cls(*nearest(pred, gt), *nearest(gt, pred))
+
+
 def _ratio(num: float, den: float) -> float:
     return float(num) / float(den) if den else 0.0
 
@@ -71,7 +90,7 @@ def iou_per_class(gt: np.ndarray, pred: np.ndarray, num_classes: int) -> tuple[n
 def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.ndarray | None = None,
                            gt_labels: np.ndarray | None = None, tau: float = DEFAULT_TAU,
                            sweep: tuple[float, ...] = DEFAULT_SWEEP, class_names: list[str] | None = None,
-                           paper_block: bool = True) -> dict:
+                           paper_block: bool = True, neighbours: Neighbours | None = None) -> dict:
     """Score a predicted cloud (N, 3) against ground-truth samples (M, 3), both in metres.
 
     Returns a dict: accuracy, completeness, chamfer_l1, chamfer_l2 (metres, m^2 for L2),
@@ -79,14 +98,15 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
     labels (ids into ``class_names``) also semantic_chamfer (pred->gt and gt->pred), per-class
     IoU and mIoU (GT points take the label of their nearest prediction within ``tau``),
     and the paper's mIoU variant (on predicted points within ``tau``); with ``paper_block``
-    the paper's one-direction Chamfer-L1 figures (Manhattan norm).
+    the paper's one-direction Chamfer-L1 figures (Manhattan norm). ``neighbours``: the
+    nearest neighbours of these two clouds if already computed.
     """
     pred = np.asarray(pred, np.float64)
     gt = np.asarray(gt, np.float64)
     if len(pred) == 0 or len(gt) == 0:
         raise ValueError("both clouds need at least one point")
-    d_pg, i_pg = nearest(pred, gt)  # prediction -> ground truth
-    d_gp, i_gp = nearest(gt, pred)  # ground truth -> prediction
+    nn = neighbours if neighbours is not None else Neighbours.compute(pred, gt)
+    d_pg, i_pg, d_gp, i_gp = nn.d_pg, nn.i_pg, nn.d_gp, nn.i_gp
     out: dict = {
         "num_pred": int(len(pred)), "num_gt": int(len(gt)), "tau": float(tau),
         "accuracy": float(d_pg.mean()), "completeness": float(d_gp.mean()),
@@ -172,14 +192,4 @@ def voxel_downsample(points: np.ndarray, labels: np.ndarray | None, voxel: float
     centres = sums / counts[:, None]
     if labels is None:
         return centres, None
-    lab = np.asarray(labels, np.int64)
-    shift = lab.min()
-    pairs = inverse * (int(lab.max() - shift) + 1) + (lab - shift)
-    uniq, cnt = np.unique(pairs, return_counts=True)
-    vox, lab_of = uniq // (int(lab.max() - shift) + 1), uniq % (int(lab.max() - shift) + 1) + shift
-    order = np.lexsort((lab_of, -cnt, vox))  # per voxel: highest count first, then smallest id
-    first = np.ones(len(order), bool)
-    first[1:] = vox[order][1:] != vox[order][:-1]
-    best = np.empty(n, np.int64)
-    best[vox[order][first]] = lab_of[order][first]
-    return centres, best
+    return centres, majority_labels(inverse, labels, num_groups=n)

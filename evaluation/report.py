@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 from pathlib import Path
@@ -112,8 +113,6 @@ def coverage_plot(path: str | Path, curves: dict[str, np.ndarray], title: str = 
         else:
             d.ellipse([xs[0] - 2, ys[0] - 2, xs[0] + 2, ys[0] + 2], fill=colour)
         d.text((x1 - 200, y1 + 8 + 14 * j), name, fill=colour)
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.png")
-    img.save(tmp)
-    tmp.replace(path)
-    return path
+    buffer = io.BytesIO()
+    img.save(buffer, format="PNG")
+    return write_atomic(path, buffer.getvalue())

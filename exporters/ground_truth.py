@@ -134,6 +134,22 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     return folder
 
 
+def write_simulator_ground_truth(sim, folder: str | Path, seed: int,
+                                 scoring_density: float = DEFAULT_SCORING_DENSITY) -> Path:
+    """:func:`write_ground_truth` for a ``generator.Simulator``'s scene: visits every frame of
+    its animation for the dynamic matrices and leaves it at the first frame."""
+    first, last = sim.frame_range
+    frames = np.arange(first, last + 1)
+    matrices = []
+    for f in frames:
+        sim.set_frame(int(f))
+        matrices.append(sim.dynamic_object_matrices())
+    sim.set_frame(first)
+    return write_ground_truth(folder, sim.scene_parts(), sim.labels, sim.surface_sample(), frames, np.stack(matrices),
+                              sim.fps, sim.K, sim.width, sim.height, sim.clip_start,
+                              min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density)
+
+
 def _with_matrix(part: MeshPart, matrix: np.ndarray) -> MeshPart:
     return replace(part, matrix=np.asarray(matrix, np.float64))
 

@@ -8,6 +8,7 @@ binary (either byte order) and ASCII files. Faces are triangles stored as a
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -78,11 +79,13 @@ def write_ply(path: str | Path, vertex: dict[str, np.ndarray], faces: np.ndarray
         for k in face:
             frec[k] = face[k]
     header.append("end_header")
-    with open(path, "wb") as f:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # never a half-written file under the real name
+    with open(tmp, "wb") as f:
         f.write(("\n".join(header) + "\n").encode("ascii"))
         f.write(vrec.tobytes())
         if frec is not None:
             f.write(frec.tobytes())
+    tmp.replace(path)
     return path
 
 
@@ -176,37 +179,26 @@ def _triangulate(lists, path: Path) -> tuple[np.ndarray, np.ndarray]:
 def _read_binary(body: bytes, elements: list[_Element], data: dict, order: str, path: Path) -> None:
     pos = 0
     for el in elements:
-        if not el.props:
-            continue
-        fixed = all(c is None for _, _, c in el.props)
-        if not fixed and len(el.props) >= 1:
-            # lists: assume every list has the first row's length (true for triangle meshes), verify after
-            dtype_fields, lengths_ok = [], True
-            first = pos
-            for name, code, count_code in el.props:
-                if count_code is None:
-                    first += np.dtype(code).itemsize
-                    continue
-                if first + np.dtype(count_code).itemsize > len(body):
-                    raise PlyError(f"{path}: truncated PLY data in element {el.name!r}")
-                k = int(np.frombuffer(body, dtype=order + count_code, count=1, offset=first)[0]) if el.count else 0
-                break
-            for name, code, count_code in el.props:
-                if count_code is None:
-                    dtype_fields.append((name, order + code))
-                else:
-                    dtype_fields += [(name + "#n", order + count_code), (name, order + code, (k,))]
-            dtype = np.dtype(dtype_fields)
+        lists = [(name, count_code) for name, _, count_code in el.props if count_code is not None]
+        if len(lists) == 1 and el.count:
+            # fast path: every row's list as long as the first row's (true for triangle meshes)
+            name, count_code = lists[0]
+            head = sum(np.dtype(code).itemsize for n, code, _ in el.props[:[p[0] for p in el.props].index(name)])
+            if pos + head + np.dtype(count_code).itemsize > len(body):
+                raise PlyError(f"{path}: truncated PLY data in element {el.name!r}")
+            k = int(np.frombuffer(body, dtype=order + count_code, count=1, offset=pos + head)[0])
+            fields = []
+            for n, code, c in el.props:
+                fields += [(n, order + code)] if c is None else [(n + "#n", order + c), (n, order + code, (k,))]
+            dtype = np.dtype(fields)
             end = pos + dtype.itemsize * el.count
             if end <= len(body):
                 rec = np.frombuffer(body, dtype=dtype, count=el.count, offset=pos)
-                lengths_ok = all(np.all(rec[n + "#n"] == k) for n, _, c in el.props if c is not None)
-            else:
-                lengths_ok = False
-            if lengths_ok:
-                data[el.name] = {n: np.array(rec[n]) for n, _, _ in el.props}
-                pos = end
-                continue
+                if np.all(rec[name + "#n"] == k):
+                    data[el.name] = {n: np.array(rec[n]) for n, _, _ in el.props}
+                    pos = end
+                    continue
+        if lists:
             pos = _read_binary_lists(body, el, data, order, pos, path)
             continue
         dtype = np.dtype([(name, order + code) for name, code, _ in el.props])

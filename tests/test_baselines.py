@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from generator.baselines.voxels import VoxelMap
+from generator.geometry.voxels import VoxelMap
 
 
 def test_voxel_map_centres_and_majority_labels():

@@ -26,18 +26,17 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
                        gt_densities: tuple[float, ...] = (100.0,), step: float = 3.0, angle: float = 22.5) -> dict:
     """Walk, reconstruct, score; write ``reconstruction.json``, the predicted cloud, the
     ground truth (at the first density) and figure 9 into ``out``."""
-    from evaluation.api import colour_ply, score_reconstruction
+    from evaluation.api import colour_ply, load_gt_cloud, score_reconstruction
     from evaluation.inputs import Cloud
-    from exporters.ground_truth import sample_scoring_points
+    from exporters.ground_truth import sample_scoring_points, write_simulator_ground_truth
     from exporters.ply import write_ply
     from trajectories import BoundedChecker, random_walk
 
     from .. import Simulator
-    from ..batch.worker import write_scene_ground_truth
     from ..geometry.camera import levelled
     from ..geometry.seeding import stream
     from ..scene import build_site
-    from .voxels import VoxelMap
+    from ..geometry.voxels import VoxelMap
 
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -59,19 +58,22 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     write_ply(out / "prediction.ply", {"x": centres[:, 0], "y": centres[:, 1], "z": centres[:, 2],
                                        "label": labels.astype(np.int32)},
               comments=[f"voxel centres, voxel {voxel} m, majority label", f"labels {json.dumps(sim.labels)}"])
-    write_scene_ground_truth(sim, out, seed, gt_densities[0])
+    write_simulator_ground_truth(sim, out / "ground_truth", seed, gt_densities[0])
     pred = Cloud(centres, labels, str(out / "prediction.ply"))
     scores = {}
     label_ids = {n: i for i, n in enumerate(sim.labels)}
     parts = sim.scene_parts()
     for density in gt_densities:
-        gt = sample_scoring_points(parts, label_ids, density, seed)
-        gt_cloud = Cloud(gt["xyz"], gt["label"].astype(np.int64), f"scoring cloud, {density:g} points/m^2")
+        if density == gt_densities[0]:  # the written ground truth, as python -m evaluation reads it
+            gt_cloud, _ = load_gt_cloud(out / "ground_truth")
+        else:
+            gt = sample_scoring_points(parts, label_ids, density, seed)
+            gt_cloud = Cloud(gt["xyz"], gt["label"].astype(np.int64), f"scoring cloud, {density:g} points/m^2")
         res, ctx = score_reconstruction(pred, gt_cloud, tau=tau, label_names=sim.labels)
         scores[f"gt_density_{density:g}"] = res
         if density == gt_densities[0]:
             colour_ply(out / "figure9.ply", ctx, tau)
-            _figure9_png(out / "figure9.png", ctx, tau)
+            _figure9_png(out / "figure9.png", ctx)
     results = {"task": "reconstruction", "parameters": {
         "seed": seed, "steps": steps, "voxel_m": voxel, "tau_m": tau, "scene_preset": scene_preset,
         "resolution": list(resolution), "step_m": step, "turn_deg": angle, "render": "Cycles, 1 sample per pixel (depth and object index are exact)",
@@ -82,23 +84,20 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     return results
 
 
-def _figure9_png(path: Path, ctx: dict, tau: float, metres_per_pixel: float = 0.2) -> None:
-    """Top-down view of figure 9: GT points coloured blue (matched with the right label),
-    orange (wrong label) or red (unmatched); the highest point of each cell wins."""
+def _figure9_png(path: Path, ctx: dict, metres_per_pixel: float = 0.2) -> None:
+    """Top-down view of figure 9 (the colours of ``evaluation.api.colour_ply``); the highest
+    point of each cell wins."""
     from PIL import Image
 
-    from evaluation.metrics import match_categories, nearest
+    from evaluation.api import MATCH_COLOURS
 
-    gt, pred = ctx["gt"], ctx["pred"]
-    d, i = nearest(gt.points, pred.points)
-    cat = match_categories(pred.labels, gt.labels, d, i, tau)
+    gt = ctx["gt"]
     lo = gt.points[:, :2].min(axis=0)
     ij = np.floor((gt.points[:, :2] - lo) / metres_per_pixel).astype(np.int64)
     w, h = ij.max(axis=0) + 1
     order = np.argsort(gt.points[:, 2])  # draw low to high: the top surface stays
     img = np.full((h, w, 3), 255, np.uint8)
-    colours = np.array([[40, 90, 220], [245, 150, 30], [220, 30, 30]], np.uint8)
-    img[h - 1 - ij[order, 1], ij[order, 0]] = colours[cat[order]]
+    img[h - 1 - ij[order, 1], ij[order, 0]] = MATCH_COLOURS[ctx["match"][order]]
     Image.fromarray(img).save(path)
 
 

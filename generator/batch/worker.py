@@ -84,24 +84,6 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False) -
     return coverage, tracks
 
 
-def write_scene_ground_truth(sim, folder: Path, seed: int, scoring_density: float) -> None:
-    """ground_truth/: scoring cloud, labelled mesh and scene.h5 (every animation frame's matrices)."""
-    import numpy as np
-
-    from exporters.ground_truth import write_ground_truth
-
-    first, last = sim.frame_range
-    frames = np.arange(first, last + 1)
-    matrices = []
-    for f in frames:
-        sim.set_frame(int(f))
-        matrices.append(sim.dynamic_object_matrices())
-    sim.set_frame(first)
-    write_ground_truth(folder / "ground_truth", sim.scene_parts(), sim.labels, sim.surface_sample(), frames,
-                       np.stack(matrices), sim.fps, sim.K, sim.width, sim.height, sim.clip_start,
-                       min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density)
-
-
 def run(config: dict, seed: int, folder: Path) -> dict:
     from ..blender import session
 
@@ -109,6 +91,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     session.set_log_path(folder / "blender.log")
     import numpy as np
 
+    from exporters.ground_truth import write_simulator_ground_truth
     from exporters.manifest import write_manifest
 
     from .. import Simulator
@@ -132,7 +115,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
         coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text)
         tracks += visible_tracks
         summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
-    write_scene_ground_truth(sim, folder, seed, cfg.scoring_density)
+    write_simulator_ground_truth(sim, folder / "ground_truth", seed, cfg.scoring_density)
     (folder / "labels.json").write_text(json.dumps(sim.labels))
     summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}

@@ -35,12 +35,28 @@ class SurfacePoints:
             part_idx.append(np.full(len(pts), i, dtype=np.int32))
             ranges[i] = start, start + len(pts)
             start += len(pts)
-        self.local = np.concatenate(locals_) if locals_ else np.zeros((0, 3))
-        self.local_normals = np.concatenate(normals) if normals else np.zeros((0, 3))
-        self.part = np.concatenate(part_idx) if part_idx else np.zeros(0, dtype=np.int32)
         label_of_part = np.array([label_ids[p.label] for p in parts], dtype=np.int32)
-        self.labels = label_of_part[self.part] if len(parts) else np.zeros(0, dtype=np.int32)
-        self.ranges = ranges
+        part = np.concatenate(part_idx) if part_idx else np.zeros(0, dtype=np.int32)
+        self._init_arrays(parts, np.concatenate(locals_) if locals_ else np.zeros((0, 3)),
+                          np.concatenate(normals) if normals else np.zeros((0, 3)), part,
+                          label_of_part[part] if len(parts) else np.zeros(0, dtype=np.int32), ranges)
+
+    @classmethod
+    def from_arrays(cls, parts: list[MeshPart], local: np.ndarray, local_normals: np.ndarray, part: np.ndarray,
+                    labels: np.ndarray) -> "SurfacePoints":
+        """Points stored earlier (e.g. in ground_truth/scene.h5), part by part in order."""
+        part = np.asarray(part, dtype=np.int32)
+        if np.any(np.diff(part) < 0):
+            raise ValueError("surface points must be stored part by part, in part order")
+        edges = np.searchsorted(part, np.arange(len(parts) + 1))
+        ranges = np.column_stack([edges[:-1], edges[1:]]).astype(np.int64)
+        self = cls.__new__(cls)
+        self._init_arrays(parts, np.asarray(local, np.float64), np.asarray(local_normals, np.float64), part,
+                          np.asarray(labels, np.int32), ranges)
+        return self
+
+    def _init_arrays(self, parts, local, local_normals, part, labels, ranges) -> None:
+        self.local, self.local_normals, self.part, self.labels, self.ranges = local, local_normals, part, labels, ranges
         self.dynamic_parts = [i for i, p in enumerate(parts) if p.dynamic]
         self.world = self.local.copy()
         self.world_normals = self.local_normals.copy()

@@ -1,9 +1,29 @@
-"""A labelled voxel map (numpy only): accumulate labelled world points, read out one point
-per occupied voxel at its centre with its majority label."""
+"""Voxels with labels (numpy only): the majority label of groups of labelled points, and a
+voxel map that accumulates labelled world points and reads out one point per occupied
+voxel at its centre with its majority label."""
 
 from __future__ import annotations
 
 import numpy as np
+
+
+def majority_labels(group: np.ndarray, label: np.ndarray, count: np.ndarray | None = None,
+                    num_groups: int | None = None) -> np.ndarray:
+    """Most frequent label per group (ties: the smallest id). ``group`` (N,) ids in
+    [0, num_groups), ``label`` (N,) ints, ``count`` (N,) how many points each row stands
+    for (default 1)."""
+    group, label = np.asarray(group, np.int64), np.asarray(label, np.int64)
+    count = np.ones(len(group), np.int64) if count is None else np.asarray(count, np.int64)
+    num_groups = int(group.max()) + 1 if num_groups is None else num_groups
+    pairs, inverse = np.unique(np.column_stack([group, label]), axis=0, return_inverse=True)
+    totals = np.bincount(inverse.reshape(-1), weights=count).astype(np.int64)
+    order = np.lexsort((pairs[:, 1], -totals, pairs[:, 0]))  # per group: highest total, then smallest id
+    g = pairs[order, 0]
+    first = np.ones(len(order), bool)
+    first[1:] = g[1:] != g[:-1]
+    best = np.full(num_groups, -1, np.int64)
+    best[g[first]] = pairs[order, 1][first]
+    return best
 
 
 class VoxelMap:
@@ -51,10 +71,5 @@ class VoxelMap:
         if not self._keys:
             return np.zeros((0, 3)), np.zeros(0, np.int64)
         keys, counts = self._keys[0], self._counts[0]
-        # sort by voxel, then count descending, then label ascending: the first row of each voxel wins
-        order = np.lexsort((keys[:, 3], -counts, keys[:, 2], keys[:, 1], keys[:, 0]))
-        keys = keys[order]
-        first = np.ones(len(keys), bool)
-        first[1:] = np.any(keys[1:, :3] != keys[:-1, :3], axis=1)
-        best = keys[first]
-        return (best[:, :3] + 0.5) * self.voxel, best[:, 3]
+        voxels, group = np.unique(keys[:, :3], axis=0, return_inverse=True)
+        return (voxels + 0.5) * self.voxel, majority_labels(group.reshape(-1), keys[:, 3], counts, len(voxels))
