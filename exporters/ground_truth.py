@@ -219,15 +219,13 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
             labels = json.loads(f.attrs["labels"])
             a, s, cam = f["animation"], f["surface_points"], f["camera"]
             frames, dyn, mats = a["frames"][()], a["dynamic_parts"][()], a["world_from_object"][()]
-            parts = []
-            for i, name in enumerate(names):
-                m = np.eye(4)
-                if g["dynamic"][i]:
-                    m = mats[0, int(np.flatnonzero(dyn == i)[0])]
-                parts.append(MeshPart(name=name, label=labels[int(g["label"][i])], vertices=V[vo[i]:vo[i + 1]],
-                                      faces=F[fo[i]:fo[i + 1]].astype(np.int64), dynamic=bool(g["dynamic"][i]),
-                                      matrix=m.copy(), closed=bool(g["closed"][i]), outward=int(g["outward"][i]),
-                                      source=sources[i]))
+            dynamic, closed, outward, label = (g[k][()] for k in ("dynamic", "closed", "outward", "label"))
+            slot = {int(p): k for k, p in enumerate(dyn)}
+            parts = [MeshPart(name=name, label=labels[int(label[i])], vertices=V[vo[i]:vo[i + 1]],
+                              faces=F[fo[i]:fo[i + 1]].astype(np.int64), dynamic=bool(dynamic[i]),
+                              matrix=mats[0, slot[i]].copy() if dynamic[i] else np.eye(4), closed=bool(closed[i]),
+                              outward=int(outward[i]), source=sources[i])
+                     for i, name in enumerate(names)]
             surface = {k: s[k][()] for k in ("local", "local_normals", "part", "label")}
             return GroundTruthScene(folder, labels, parts, frames, dyn, mats, surface, cam["K"][()],
                                     int(cam.attrs["width"]), int(cam.attrs["height"]), float(cam.attrs["near"]),

@@ -197,3 +197,19 @@ def test_unwritable_output_folder(tmp_path):
     blocker.write_text("x")
     r = run(blocker / "sub", "--seeds", "1")
     assert r.returncode == 2 and r.stderr.startswith("error: cannot write to output folder") and "Traceback" not in r.stderr
+
+
+def test_seed_folders_of_an_older_format_are_redone(tmp_path):
+    from exporters import FORMAT_VERSION
+    from exporters.manifest import write_manifest
+    from generator.batch.config import RunConfig
+    from generator.batch.runner import plan_seeds
+
+    cfg = RunConfig()
+    for seed, version in ((1, "0.2"), (2, FORMAT_VERSION)):
+        (tmp_path / f"seed_{seed:06d}").mkdir()
+        write_manifest(tmp_path / f"seed_{seed:06d}", {"format_version": version, "config": cfg.to_dict(), "summary": {}})
+    todo, skipped, notes = plan_seeds(tmp_path, [1, 2], cfg, overwrite=False)
+    assert todo == [1] and [r.seed for r in skipped] == [2]
+    assert notes == [f"seed 1: existing folder replaced (format 0.2, now {FORMAT_VERSION})"]
+    assert not (tmp_path / "seed_000001").exists()

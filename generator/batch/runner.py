@@ -16,6 +16,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from exporters import FORMAT_VERSION
 from exporters.manifest import read_manifest
 
 from .config import RunConfig
@@ -47,12 +48,14 @@ def plan_seeds(out: Path, seeds: list[int], cfg: RunConfig, overwrite: bool) -> 
             shutil.rmtree(partial)
             notes.append(f"seed {seed}: unfinished output from an earlier run removed; redoing it")
         manifest = read_manifest(final) if final.exists() else None
-        if manifest is not None and not overwrite and manifest.get("config") == cfg.to_dict():
+        current = manifest is not None and manifest.get("format_version") == FORMAT_VERSION
+        if current and not overwrite and manifest.get("config") == cfg.to_dict():
             skipped.append(SeedResult(seed, "skipped", "already complete", manifest.get("summary", {})))
             continue
         if final.exists():
-            reason = "--overwrite" if manifest is not None and overwrite else (
-                "different parameters" if manifest is not None else "no manifest (incomplete)")
+            reason = ("no manifest (incomplete)" if manifest is None else "--overwrite" if overwrite else
+                      f"format {manifest.get('format_version')}, now {FORMAT_VERSION}" if not current else
+                      "different parameters")
             notes.append(f"seed {seed}: existing folder replaced ({reason})")
             shutil.rmtree(final)
         todo.append(seed)
