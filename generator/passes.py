@@ -35,7 +35,8 @@ class RawPasses:
 
 @dataclass
 class RenderOutput:
-    """What ``Simulator.render()`` returns; unpacks as ``rgb, depth, seg = sim.render()``.
+    """What ``Simulator.render()`` returns; behaves as the paper's 3-tuple ``(rgb, depth, seg)``
+    (unpacking, indexing, slicing, ``len``) and holds the extra fields below.
 
     rgb: (H, W, 3) float32 display-referred (view transform applied), in [0, 1].
     depth: (H, W) float32 planar depth in metres, +inf where no surface.
@@ -56,6 +57,13 @@ class RenderOutput:
 
     def __iter__(self):
         return iter((self.rgb, self.depth, self.seg))
+
+    def __len__(self) -> int:
+        return 3
+
+    def __getitem__(self, index):
+        """Indexes and slices like the paper's ``(rgb, depth, seg)`` tuple."""
+        return (self.rgb, self.depth, self.seg)[index]
 
 
 def read_blender_exr(path: str | Path) -> RawPasses:

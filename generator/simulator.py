@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -22,6 +23,7 @@ from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
+from .paper_api import PaperAPI
 from .passes import RenderOutput, label_coverage, semantic_map
 
 
@@ -43,7 +45,7 @@ def _check_number(name: str, value, low=None, high=None, low_open=False) -> floa
     return v
 
 
-class Simulator:
+class Simulator(PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
@@ -59,6 +61,14 @@ class Simulator:
         collision_radius: radius in metres of the camera's collision sphere (>= 0).
         render_preset: None keeps the .blend's render settings (engine, resolution,
             samples); 'preview', 'default' or 'high' override them (see configure_render).
+        geometry_nodes_objects: the paper's objects to realise into meshes; accepted for
+            its scripts, every object's instances and modifiers are realised anyway.
+        filter_object_names: objects (by name) that get no surface points, no label and
+            no collisions (they still render), as the paper's evaluation branch.
+        verbose: print what was found (points, labels) to stderr.
+
+    The paper's names (``n_points``, ``camera_matrix``, ``set_camera_from_next_camera``...)
+    work too: docs/simulator-api.md.
     """
 
     def __init__(
@@ -70,6 +80,10 @@ class Simulator:
         seed: int = 0,
         collision_radius: float = 0.3,
         render_preset: str | None = None,
+        *,
+        geometry_nodes_objects=("Generator",),
+        filter_object_names=(),
+        verbose: bool = False,
     ):
         self.points_density = _check_number("points_density", points_density, low=0, low_open=True)
         if not math.isfinite(self.points_density):
@@ -81,6 +95,9 @@ class Simulator:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
         self.blend_file = Path(blend_file)
+        self.geometry_nodes_objects = _check_names("geometry_nodes_objects", geometry_nodes_objects)
+        self.filter_object_names = _check_names("filter_object_names", filter_object_names)
+        self.verbose = bool(verbose)
 
         session.open_blend(self.blend_file)
         self._generation = session.generation()
@@ -96,8 +113,9 @@ class Simulator:
         extracted = extract_parts()
         if not extracted.parts:
             raise SceneError(f"{self.blend_file} has no render-visible mesh objects with faces")
-        self._parts = extracted.parts
-        self._bindings = extracted.bindings
+        self._parts, self._bindings = _without_objects(extracted.parts, extracted.bindings, self.filter_object_names)
+        if not self._parts:
+            raise SceneError(f"{self.blend_file}: filter_object_names leaves no mesh objects")
         self.labels: list[str] = _label_table({p.label for p in self._parts})
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
@@ -118,6 +136,10 @@ class Simulator:
             else self._initial_pose[None, :3, 3].copy()
         )
         self.frame = int(session.bpy.context.scene.frame_current)
+        self._init_paper_api()
+        if self.verbose:
+            print(f"Found {self.n_static_points} static points and {self.n_dynamic_points} dynamic points; "
+                  f"{self.n_labels} labels: {self.labels}", file=sys.stderr)
 
     # ---- state checks -------------------------------------------------------------------
     def _check_current(self) -> None:
@@ -128,6 +150,30 @@ class Simulator:
     @property
     def num_points(self) -> int:
         return len(self._points)
+
+    @property
+    def point_positions(self) -> np.ndarray:
+        """(N, 3) float64 world metres of the surface points at the current frame (read-only)."""
+        return self._points.world
+
+    @property
+    def scene(self):
+        """Blender's scene (bpy). Set the camera with the Simulator's methods, not here."""
+        self._check_current()
+        return session.bpy.context.scene
+
+    @property
+    def view_layer(self):
+        """Blender's view layer (bpy)."""
+        self._check_current()
+        return session.bpy.context.view_layer
+
+    @property
+    def camera(self):
+        """Blender's camera object (bpy). Its pose is written by the Simulator; moving it
+        directly is not seen by the Simulator (use ``set_world_from_camera``)."""
+        self._check_current()
+        return self._camera
 
     @property
     def point_instances(self) -> np.ndarray:
@@ -189,13 +235,14 @@ class Simulator:
         return float(self.observed_points_mask.sum()) / n if n else 0.0
 
     # ---- point cloud ---------------------------------------------------------------------
-    def compute_point_cloud(self, update_mask: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def compute_point_cloud(self, update_mask: bool = True, imshow: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All surface points at the current frame and which ones the camera sees.
 
         Returns ``(points (N, 3) float64 world metres, labels (N,) int32, visible (N,) bool)``.
         ``points`` and ``labels`` are read-only and are not modified by later calls (copy
         them to edit). With ``update_mask`` the visible points are added to
-        ``observed_points_mask``.
+        ``observed_points_mask``. With ``imshow`` the visible points are drawn in their
+        ``point_cloud_colors`` into ``point_cloud_image`` ((H, W, 3) uint8; no window opens).
         """
         self._check_current()
         pts = self._points
@@ -206,6 +253,8 @@ class Simulator:
         )
         if update_mask:
             self.observed_points_mask |= visible
+        if imshow:
+            self.point_cloud_image = self.draw_point_cloud_image(visible)
         return pts.world, pts.labels, visible
 
     def reset_observations(self) -> None:
@@ -365,6 +414,23 @@ class Simulator:
         hit = (part >= 0) & (t > self.clip_start) & (t <= self.clip_end)
         out = np.where(hit, self._pass_table.of_part[np.maximum(part, 0)], 0)
         return out.reshape(self.height, self.width).astype(np.int32)
+
+
+def _check_names(name: str, value) -> tuple[str, ...]:
+    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+        raise ValueError(f"{name} must be a list of object names, got {value!r}")
+    return tuple(value)
+
+
+def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ...]):
+    """Parts and dynamic bindings without the parts of the named objects (an instance
+    belongs to its instancer's name), binding indices renumbered."""
+    if not names:
+        return parts, bindings
+    keep = [i for i, p in enumerate(parts) if p.name.split("/")[0] not in names]
+    new_index = {old: new for new, old in enumerate(keep)}
+    kept = [replace(b, part=new_index[b.part]) for b in bindings if b.part in new_index]
+    return [parts[i] for i in keep], kept
 
 
 def _label_table(present: set[str]) -> list[str]:

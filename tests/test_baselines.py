@@ -2,6 +2,7 @@
 reconstructed points on the scene's surfaces."""
 
 import json
+import math
 import subprocess
 import sys
 
@@ -9,7 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
+from generator.geometry.camera import look_at
 from generator.geometry.voxels import VoxelMap
+from trajectories import modified_random_walk
 
 
 def test_voxel_map_centres_and_majority_labels():
@@ -31,7 +34,79 @@ def baselines(*args):
                           text=True, cwd=ROOT)
 
 
+class Box:
+    """A MotionChecker: free space is the box ``lo <= p <= hi`` (the end of a move decides)."""
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = np.asarray(lo, float), np.asarray(hi, float)
+
+    def can_move(self, a, b):
+        return bool(np.all(np.asarray(b) >= self.lo) and np.all(np.asarray(b) <= self.hi))
+
+    def is_free(self, p):
+        return self.can_move(p, p)
+
+
+def _heading(pose):
+    return math.degrees(math.atan2(pose[1, 2], pose[0, 2]))
+
+
+def test_modified_walk_draws_headings_inside_one_step():
+    start = look_at((0.0, 0.0, 1.5), (0.0, 10.0, 1.5))  # looking along +Y, a wall 1 m ahead
+    box = Box((-20, -20, 0), (20, 1.0, 3))
+    traj = modified_random_walk(box, start, 6, np.random.default_rng(7))
+    assert len(traj.poses) == 7 and len(traj.actions) == 6
+    assert traj.actions[0] == "turn_forward" and traj.params["heading_draws"][0] >= 1
+    # replay the draws: the heading turned by the sum of n uniform angles in [-180, 180) degrees
+    rng = np.random.default_rng(7)
+    turned = sum(rng.uniform(-180.0, 180.0) for _ in range(traj.params["heading_draws"][0]))
+    after = traj.poses[1]
+    assert (_heading(after) - _heading(start) + turned + 180) % 360 - 180 == pytest.approx(0, abs=1e-9)
+    # and moved 3 m along that new heading, in the same step
+    np.testing.assert_allclose(after[:3, 3] - start[:3, 3], 3.0 * after[:3, 2], atol=1e-9)
+    for k, action in enumerate(traj.actions):  # every step is one 3 m move (forward or after turning)
+        assert np.linalg.norm(traj.poses[k + 1][:3, 3] - traj.poses[k][:3, 3]) == pytest.approx(3.0)
+        if action == "forward":
+            np.testing.assert_array_equal(traj.poses[k + 1][:3, :3], traj.poses[k][:3, :3])
+            assert traj.params["heading_draws"][k] == 0
+
+
+def test_modified_walk_boxed_in_stays_after_max_draws():
+    start = look_at((0.0, 0.0, 1.5), (0.0, 10.0, 1.5))
+    traj = modified_random_walk(Box((-1, -1, 0), (1, 1, 3)), start, 3, np.random.default_rng(0), max_draws=25)
+    assert traj.actions == ["stuck"] * 3 and traj.params["heading_draws"] == [25] * 3
+    np.testing.assert_allclose(traj.positions, np.broadcast_to(start[:3, 3], (4, 3)))
+
+
+def test_entrance_start_pose_rule():
+    from generator.baselines.start_pose import entrance_start_pose, find_gate, site_start
+    from generator.scene import plan_site, site_params
+
+    # a 20 m square fence with a 4 m gate in the middle of its east side
+    f = 10.0
+    runs = [((-f, -f), (f, -f)), ((f, -f), (f, -2.0)), ((f, 2.0), (f, f)), ((f, f), (-f, f)), ((-f, f), (-f, -f))]
+    gate = find_gate(runs)
+    np.testing.assert_allclose(gate.midpoint, [f, 0.0])
+    np.testing.assert_allclose(gate.inward, [-1.0, 0.0], atol=1e-12)
+    assert gate.width == pytest.approx(4.0)
+    pose = entrance_start_pose(runs, ((-8, -8, 1.5), (8, 8, 20)))
+    np.testing.assert_allclose(pose[:3, 3], [8, 0, 1.5])  # on the spawn volume's east face, lowest height
+    np.testing.assert_allclose(pose[:3, 2], [-1, 0, 0], atol=1e-12)  # looking west, into the site, level
+    assert abs(pose[2, 0]) < 1e-12  # no roll
+    with pytest.raises(ValueError, match="no gap"):
+        find_gate(runs[:1] + [((f, -f), (f, f))] + runs[3:])
+    for seed in (0, 137, 281):  # our sites: the gate on the south side, at x in [-4, 4]
+        plan = plan_site(seed, site_params("medium"))
+        pose, (lo, hi) = site_start(plan)
+        assert -4 <= pose[0, 3] <= 4 and pose[1, 3] == lo[1] and pose[2, 3] == lo[2]
+        np.testing.assert_allclose(pose[:3, 2], [0, 1, 0], atol=1e-12)
+
+
 def test_exploration_table_is_reproducible(tmp_path):
+    from generator.baselines.start_pose import site_start
+    from generator.scene import plan_site, site_params
+    from trajectories import Trajectory
+
     args = ["exploration", "--seeds", "3", "--steps", "15", "--runs", "2", "--scene-preset", "small",
             "--points-density", "1"]
     a, b = baselines(*args, "--out", tmp_path / "a"), baselines(*args, "--out", tmp_path / "b")
@@ -42,6 +117,15 @@ def test_exploration_table_is_reproducible(tmp_path):
         assert len(ra["seeds"]["3"][method]["auc_runs"]) == 2
     curves = np.load(tmp_path / "a" / "site_3" / "coverage_curves.npz")
     assert curves["random_walk"].shape == (2, 16) and np.all(np.diff(curves["random_walk"], axis=1) >= 0)
+    # every run of the seed starts from the one entrance pose; the runs then differ
+    start, _ = site_start(plan_site(3, site_params("small")))
+    trajs = [Trajectory.load(tmp_path / "a" / "site_3" / f"{m}_run{r:02d}.npz")
+             for m in ("random_walk", "modified_random_walk") for r in range(2)]
+    for t in trajs:
+        np.testing.assert_array_equal(t.poses[0], start)
+        steps = np.linalg.norm(np.diff(t.positions, axis=0), axis=1)
+        assert np.all(np.isclose(steps, 0) | np.isclose(steps, 3.0))  # 3 m moves (or refused)
+    assert not np.array_equal(trajs[0].poses, trajs[1].poses)
     assert (tmp_path / "a" / "figure8_seed_3.png").is_file() and (tmp_path / "a" / "coverage_seed_3.png").is_file()
     assert "| 3 |" in a.stdout and "Read blend" not in a.stdout
 

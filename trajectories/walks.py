@@ -1,9 +1,12 @@
-"""The paper's exploration baselines: random walk and modified random walk (section 4.2).
+"""The paper's exploration baselines: random walk and modified random walk (section 4.2),
+as its evaluation code runs them.
 
-Both use exactly five actions: ``forward`` and ``left`` / ``right`` (moves of ``step``
-metres along the camera's z / -x / +x axes) and ``turn_left`` / ``turn_right`` (turns of
-``angle`` degrees about the world Z axis). A move that would collide leaves the pose
-unchanged, as in the Simulator.
+The random walk draws one of five actions per step: ``forward`` and ``left`` / ``right``
+(moves of ``step`` metres along the camera's z / -x / +x axes) and ``turn_left`` /
+``turn_right`` (turns of ``angle`` degrees about the world Z axis). The modified random
+walk moves forward every step and, when blocked, draws random headings inside that step
+until the move is free. A move that would collide leaves the pose unchanged, as in the
+Simulator.
 """
 
 from __future__ import annotations
@@ -51,8 +54,9 @@ def _check(steps: int, step: float, angle: float) -> None:
 
 
 def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.random.Generator,
-                step: float = 1.0, angle: float = 15.0, fps: float = 10.0) -> Trajectory:
-    """``steps`` actions drawn uniformly from the five; returns steps + 1 poses (start first)."""
+                step: float = 3.0, angle: float = 22.5, fps: float = 10.0) -> Trajectory:
+    """``steps`` actions drawn uniformly from the five; returns steps + 1 poses (start first).
+    Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
     _check(steps, step, angle)
     poses, actions = [np.array(start, dtype=np.float64)], []
     for _ in range(steps):
@@ -64,34 +68,35 @@ def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.r
                       {"step_m": step, "angle_deg": angle, "fps": fps})
 
 
+MODIFIED_WALK_ACTIONS = ("forward", "turn_forward", "stuck")
+
+
 def modified_random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.random.Generator,
-                         step: float = 1.0, angle: float = 15.0, fps: float = 10.0) -> Trajectory:
-    """Go forward until the next forward move would collide, then turn (in ``angle``
-    steps, one action each) to a randomly chosen heading whose forward move is free."""
+                         step: float = 3.0, angle: float = 22.5, fps: float = 10.0,
+                         max_draws: int = 1000) -> Trajectory:
+    """The paper's modified random walk: every step is one forward move of ``step`` metres.
+
+    When the forward move is blocked, the camera turns by an angle drawn uniformly in
+    [-180, 180) degrees about the world Z axis and tries again, as often as needed, all
+    inside the same step (the paper's evaluation code). Each step's action is ``forward``
+    (the move was free), ``turn_forward`` (headings were drawn, then the move was made) or
+    ``stuck`` (no free heading in ``max_draws`` draws, where the paper's code would loop
+    forever: the camera keeps its position and its last drawn heading). ``angle`` is not
+    used (the walks share one signature); returns steps + 1 poses (start first).
+    """
     _check(steps, step, angle)
-    poses, actions = [np.array(start, dtype=np.float64)], []
-    plan: list[str] = []
-    while len(actions) < steps:
-        pose = poses[-1]
-        if not plan:
-            ahead = apply_action(pose, "forward", step, angle)
-            if checker.can_move(pose[:3, 3], ahead[:3, 3]):
-                plan = ["forward"]
-            else:
-                direction = "turn_left" if rng.random() < 0.5 else "turn_right"
-                n_max = max(1, int(round(360 / angle)) - 1)
-                free = []
-                for k in range(1, n_max + 1):
-                    turned = pose
-                    for _ in range(k):
-                        turned = apply_action(turned, direction, step, angle)
-                    if checker.can_move(turned[:3, 3], apply_action(turned, "forward", step, angle)[:3, 3]):
-                        free.append(k)
-                k = int(rng.choice(free)) if free else 1  # boxed in: keep turning
-                plan = [direction] * k
-        action = plan.pop(0)
-        new, _ = _act(checker, pose, action, step, angle)
+    if not isinstance(max_draws, (int, np.integer)) or max_draws < 1:
+        raise ValueError(f"max_draws must be a positive integer, got {max_draws!r}")
+    poses, actions, draws = [np.array(start, dtype=np.float64)], [], []
+    for _ in range(steps):
+        pose, n = poses[-1], 0
+        new, blocked = _act(checker, pose, "forward", step, angle)
+        while blocked and n < max_draws:
+            pose = turned_about_world_z(pose, math.radians(rng.uniform(-180.0, 180.0)))
+            n += 1
+            new, blocked = _act(checker, pose, "forward", step, angle)
         poses.append(new)
-        actions.append(action)
+        actions.append("stuck" if blocked else ("turn_forward" if n else "forward"))
+        draws.append(n)
     return Trajectory(np.stack(poses), timestamps(len(poses), fps), "modified_random_walk", actions,
-                      {"step_m": step, "angle_deg": angle, "fps": fps})
+                      {"step_m": step, "fps": fps, "max_draws": int(max_draws), "heading_draws": draws})

@@ -2,10 +2,14 @@
 world points, keeps one point per voxel (its centre, with the majority label) and is scored
 with the evaluation package against the labelled ground-truth cloud.
 
-Depth and labels come from Cycles at 1 sample per pixel (both passes are exact at the pixel
-centre and do not need more samples; RGB is not used). The scene is held at its first
-animation frame, as in the paper. The walk starts level at a spawn point and stays in the
-camera spawn volume, as in the exploration baseline.
+As the paper's code (``point_cloud_segmentation.py``): ``steps`` random-walk actions (3 m
+moves, 22.5 degree turns), an image rendered at the pose before each action (``steps``
+frames; the pose after the last action is not observed). Depth and labels come from
+Cycles at 1 sample per pixel (both passes are exact at the pixel centre and do not need
+more samples; RGB is not used). The scene is held at its first animation frame, as in the
+paper. The walk starts from the exploration baseline's fixed entrance pose
+(:mod:`.start_pose`) and stays in the camera spawn volume. Differences from the paper's
+code (voxel centre and majority label): docs/results.md.
 """
 
 from __future__ import annotations
@@ -33,23 +37,23 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     from trajectories import BoundedChecker, random_walk
 
     from .. import Simulator
-    from ..geometry.camera import levelled
     from ..geometry.seeding import stream
-    from ..scene import build_site
     from ..geometry.voxels import VoxelMap
+    from ..scene import build_site, plan_site, site_params
+    from .start_pose import site_start
 
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     site = build_site(seed, scene_preset, out / "site", preview=False)
     sim = Simulator(site.blend, points_density=0.5, seed=seed)
     sim.configure_render(samples=1, denoise=False, resolution=tuple(resolution))
-    start = levelled(sim.respawn_camera())
-    checker = BoundedChecker(sim, sim.spawn_points.min(axis=0), sim.spawn_points.max(axis=0))
+    start, (lo, hi) = site_start(plan_site(seed, site_params(scene_preset)))
+    checker = BoundedChecker(sim, lo, hi)
     traj = random_walk(checker, start, steps, stream(seed, "baseline-reconstruction"), step=step, angle=angle)
     traj.save(out / "trajectory.npz")
     vmap = VoxelMap(voxel)
     t_walk = time.perf_counter()
-    for pose in tqdm(traj.poses, desc="frames", unit="frame"):
+    for pose in tqdm(traj.poses[:steps], desc="frames", unit="frame"):  # observe, then act
         sim.set_world_from_camera(pose, check_collisions=False)
         r = sim.render()
         vmap.add(sim.depth_to_world_points(r.depth), r.seg)
@@ -76,7 +80,8 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
             _figure9_png(out / "figure9.png", ctx)
     results = {"task": "reconstruction", "parameters": {
         "seed": seed, "steps": steps, "voxel_m": voxel, "tau_m": tau, "scene_preset": scene_preset,
-        "resolution": list(resolution), "step_m": step, "turn_deg": angle, "render": "Cycles, 1 sample per pixel (depth and object index are exact)",
+        "resolution": list(resolution), "step_m": step, "turn_deg": angle, "frames": steps,
+        "start": "fixed: level camera at the site's entrance (generator.baselines.start_pose)", "render": "Cycles, 1 sample per pixel (depth and object index are exact)",
         "frame": "first (static scene)", "gt_densities_per_m2": list(gt_densities)},
         "predicted_points": int(len(centres)), "scores": scores, "paper": PAPER_TABLE3,
         "seconds": {"total": time.perf_counter() - t0, "render_and_fuse": t_render}}
