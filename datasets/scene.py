@@ -19,13 +19,34 @@ import numpy as np
 from exporters import FORMAT_VERSION
 from exporters.exr import read_frame_exr
 from exporters.frames import frame_names
+from exporters.hdf5 import DamagedFileError, attribute, group, open_file, read, text
 from exporters.manifest import read_manifest
 
 SUPPORTED_VERSIONS = (FORMAT_VERSION,)
 
 
 class DatasetError(ValueError):
-    """A folder that cannot be read as a generated scene (the message says why)."""
+    """A folder that cannot be read as a generated scene, or a damaged file in it (the
+    message names the file and says what to do)."""
+
+
+def _checked(call, *args):
+    """``call(*args)``, with a damaged file reported as a :class:`DatasetError`."""
+    try:
+        return call(*args)
+    except DamagedFileError as exc:
+        raise DatasetError(str(exc)) from None
+
+
+def _index(i, n: int, what: str) -> int:
+    """Python indexing (negative counts from the end) with a message stating the valid range."""
+    if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
+        raise TypeError(f"{what} index must be an integer, got {type(i).__name__}")
+    j = int(i) + n if i < 0 else int(i)
+    if not 0 <= j < n:
+        raise IndexError(f"{what} index {int(i)} out of range: valid indices are -{n}..{n - 1}" if n
+                         else f"{what} index {int(i)} out of range: there are no frames")
+    return j
 
 
 @dataclass
@@ -57,9 +78,13 @@ class _H5:
 
     def get(self) -> h5py.File:
         if self._file is None or self._pid != os.getpid():
-            self._file = h5py.File(self.path, "r")
+            self._file = _checked(open_file, self.path)
             self._pid = os.getpid()
         return self._file
+
+    def read(self, key: str, sel=()) -> np.ndarray:
+        """``file[key][sel]``; a damaged dataset (checksum, missing) raises DatasetError."""
+        return _checked(read, self.get(), key, self.path, sel)
 
     def __getstate__(self):
         return {"path": self.path, "_pid": None, "_file": None}
@@ -74,17 +99,35 @@ class Sequence:
         for name in ("tracks.h5", "trajectory.npz"):
             if not (folder / name).is_file():
                 raise DatasetError(f"{folder}: missing {name}; the seed folder is incomplete, regenerate it")
-        self._h5 = _H5(folder / "tracks.h5")
-        f = self._h5.get()
-        version = f.attrs.get("format_version")
+        self._h5 = h5 = _H5(folder / "tracks.h5")
+        f = h5.get()
+        version = text(_checked(attribute, f, "format_version")) if "format_version" in f.attrs else None
         if version not in SUPPORTED_VERSIONS:
             raise DatasetError(f"{folder / 'tracks.h5'}: format_version {version!r}; this reader reads "
                                f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites or regenerate)")
-        self.K = f["cameras/K"][()]
-        self.width, self.height = int(f["cameras"].attrs["width"]), int(f["cameras"].attrs["height"])
-        self.poses = f["cameras/world_from_camera"][()]
-        self.timestamps = f["cameras/timestamps"][()]
-        self.offsets = f["visibility/offsets"][()]
+        self.K = h5.read("cameras/K")
+        cams = _checked(group, f, "cameras", h5.path)
+        self.width, self.height = (int(_checked(attribute, cams, k, h5.path)) for k in ("width", "height"))
+        self.poses = h5.read("cameras/world_from_camera")
+        self.timestamps = h5.read("cameras/timestamps")
+        self.offsets = h5.read("visibility/offsets")
+        self._check(h5.path)
+
+    def _check(self, path: Path) -> None:
+        T = len(self.poses)
+        problems = [
+            (self.K.shape != (3, 3) or not np.isfinite(self.K).all() or self.K[0, 0] <= 0 or self.K[1, 1] <= 0,
+             "cameras/K is not a valid intrinsic matrix"),
+            (self.width <= 0 or self.height <= 0, "camera size"),
+            (self.poses.shape[1:] != (4, 4) or not np.isfinite(self.poses).all(), "cameras/world_from_camera"),
+            (self.timestamps.shape != (T,) or not np.isfinite(self.timestamps).all(), "cameras/timestamps"),
+            (self.offsets.shape != (T + 1,) or (T and (self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0))),
+             "visibility/offsets"),
+        ]
+        for bad, what in problems:
+            if bad:
+                raise DatasetError(f"{path}: damaged file ({what} is inconsistent); regenerate this seed with "
+                                   "python -m generator")
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -95,53 +138,67 @@ class Sequence:
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self)))]
-        i = int(i)
-        if i < 0:
-            i += len(self)
-        if not 0 <= i < len(self):
-            raise IndexError(f"frame {i} out of range: {self.kind} has {len(self)} frames")
+        i = _index(i, len(self), f"{self.kind} frame")
         path = self.exr_path(i)
         if not path.is_file():
             raise DatasetError(f"{path}: missing frame; the seed folder is incomplete, regenerate it")
-        d = read_frame_exr(path)
+        d = _checked(read_frame_exr, path)
+        missing = [k for k in ("rgb", "depth", "label", "instance") if k not in d]
+        shape = (self.height, self.width)
+        if missing or any(d[k].shape[:2] != shape for k in ("rgb", "depth", "label", "instance")):
+            raise DatasetError(f"{path}: damaged frame (" + (f"no {', '.join(missing)} channel" if missing else
+                               f"not {self.width}x{self.height} pixels") + "); regenerate this seed with python -m generator")
         return Frame(d["rgb"], d["depth"], d["label"], d["instance"], self.K.copy(),
                      self.poses[i].copy(), float(self.timestamps[i]), i, self.kind)
 
     def visible_tracks(self, t: int) -> dict:
-        """Points visible at frame t: ``ids`` (n,), ``xy`` (n, 2) pixels, ``depth`` (n,) metres."""
-        f = self._h5.get()
+        """Points visible at frame t (Python indexing: -1 is the last frame): ``ids`` (n,),
+        ``xy`` (n, 2) pixels, ``depth`` (n,) metres."""
+        t = _index(t, len(self), f"{self.kind} frame")
         a, b = int(self.offsets[t]), int(self.offsets[t + 1])
-        return {"ids": f["visibility/index"][a:b], "xy": f["visibility/xy"][a:b], "depth": f["visibility/depth"][a:b]}
+        out = {k: self._h5.read(f"visibility/{name}", np.s_[a:b]) for k, name in
+               (("ids", "index"), ("xy", "xy"), ("depth", "depth"))}
+        if any(len(v) != b - a for v in out.values()) or (b > a and (out["ids"].min() < 0 or
+                                                                      out["ids"].max() >= len(self.points["label"]))):
+            raise DatasetError(f"{self._h5.path}: damaged file (visibility of frame {t} is inconsistent); "
+                               "regenerate this seed with python -m generator")
+        return out
 
     def point_positions(self, t: int, ids: np.ndarray) -> np.ndarray:
-        """World positions (n, 3) metres of points ``ids`` at frame t (dynamic ones moved)."""
+        """World positions (n, 3) metres of points ``ids`` at frame t (Python indexing; dynamic
+        ones moved)."""
         from exporters.tracks import world_positions
 
+        t = _index(t, len(self), f"{self.kind} frame")
+        ids = np.asarray(ids)
+        n = len(self.points["label"])
+        if ids.size and (ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n):
+            raise IndexError(f"point ids must be integers in 0..{n - 1}")
         return world_positions({"local": self.points["local"], "dynamic_object": self.points["dynamic_object"],
-                                "world_from_object": self.object_matrices}, t, np.asarray(ids))
+                                "world_from_object": self.object_matrices}, t, ids)
 
     @cached_property
     def points(self) -> dict:
         """The tracked surface points: local (N, 3), label, instance, dynamic_object (N,)."""
-        f = self._h5.get()
-        return {k: f[f"points/{k}"][()] for k in ("local", "label", "instance", "dynamic_object")}
+        return {k: self._h5.read(f"points/{k}") for k in ("local", "label", "instance", "dynamic_object")}
 
     @cached_property
     def object_matrices(self) -> np.ndarray:
         """(T, D, 4, 4) world_from_object of the moving objects."""
-        return self._h5.get()["objects/world_from_object"][()]
+        return self._h5.read("objects/world_from_object")
 
     @cached_property
     def coverage(self) -> np.ndarray:
         """(T,) share of surface points observed at least once after each frame."""
-        return self._h5.get()["coverage"][()]
+        return self._h5.read("coverage")
 
     @cached_property
     def tapvid(self) -> dict:
         """TAP-Vid query subset: query_points (Q, 3) (t, y, x), tracks (Q, T, 2) (x, y),
-        occluded (Q, T), tracks_3d (Q, T, 3), point_ids (Q,)."""
-        g = self._h5.get()["tapvid"]
-        return {k: g[k][()] for k in g}
+        occluded (Q, T), tracks_3d (Q, T, 3), point_ids (Q,) (checked for consistency)."""
+        from exporters.tracks import read_tapvid
+
+        return _checked(read_tapvid, self._h5.get(), self._h5.path)
 
 
 class Scene:
@@ -165,12 +222,25 @@ class Scene:
             raise DatasetError(f"{self.path}: format_version {version!r}; this reader reads "
                                f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites or regenerate)")
         self.manifest = manifest
-        self.seed = int(manifest["seed"])
+        try:
+            self.seed = int(manifest["seed"])
+            self.trajectories: list[str] = [str(k) for k in manifest["config"]["trajectories"]]
+        except (KeyError, TypeError, ValueError):
+            raise DatasetError(f"{self.path / 'manifest.json'}: damaged manifest (no seed or trajectories); "
+                               "regenerate this seed with python -m generator") from None
+        if any(Path(k).name != k or k in ("", ".", "..") for k in self.trajectories):
+            raise DatasetError(f"{self.path / 'manifest.json'}: damaged manifest (trajectory names "
+                               f"{self.trajectories} are not folder names); regenerate this seed")
         labels_path = self.path / "labels.json"
         if not labels_path.is_file():
             raise DatasetError(f"{labels_path}: missing; the seed folder is incomplete, regenerate it")
-        self.labels: list[str] = json.loads(labels_path.read_text())
-        self.trajectories: list[str] = list(manifest["config"]["trajectories"])
+        try:
+            self.labels: list[str] = json.loads(labels_path.read_bytes().decode("utf-8"))
+        except (OSError, ValueError) as exc:
+            raise DatasetError(f"{labels_path}: unreadable label table ({exc.__class__.__name__}); "
+                               "regenerate this seed with python -m generator") from None
+        if not isinstance(self.labels, list) or not all(isinstance(n, str) for n in self.labels):
+            raise DatasetError(f"{labels_path}: not a JSON list of class names; regenerate this seed")
         self._sequences: dict[str, Sequence] = {}
 
     def __repr__(self) -> str:
@@ -199,7 +269,16 @@ class Scene:
         path = self.path / "ground_truth" / "points.ply"
         if not path.is_file():
             raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
-        d = read_ply(path)
+        from exporters.ply import PlyError
+
+        try:
+            d = read_ply(path)
+        except PlyError as exc:
+            raise DatasetError(f"{exc}; regenerate this seed with python -m generator") from None
+        missing = [k for k in ("label", "instance", "dynamic") if k not in d.vertex]
+        if missing:
+            raise DatasetError(f"{path}: no {', '.join(missing)} property; not a ground-truth cloud of "
+                               "python -m generator, regenerate this seed")
         out = {"xyz": np.stack([d.vertex[c] for c in "xyz"], 1), "label": d.vertex["label"],
                "instance": d.vertex["instance"], "dynamic": d.vertex["dynamic"].astype(bool)}
         if static_only:
@@ -219,15 +298,12 @@ class _Frames:
         return int(self.starts[-1])
 
     def locate(self, i: int) -> tuple[Sequence, int]:
-        if i < 0:
-            i += len(self)
-        if not 0 <= i < len(self):
-            raise IndexError(f"frame {i} out of range ({len(self)} frames)")
+        i = _index(i, len(self), "frame")
         k = int(np.searchsorted(self.starts, i, side="right") - 1)
         return self.sequences[k], i - int(self.starts[k])
 
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self)))]
-        seq, j = self.locate(int(i))
+        seq, j = self.locate(i)
         return seq[j]

@@ -4,12 +4,17 @@
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
   python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
 
-Bad input: one line on stderr, exit code 2, nothing written.
+Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot)
+never land on an input of the run, inside a seed folder or ground_truth/ folder, or on a
+folder; that is checked before any scoring starts.
 """
 
 from __future__ import annotations
 
+import argparse
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 from generator.cli_args import OneLineParser, positive_float, resolution
@@ -51,28 +56,81 @@ def parse_args(argv=None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def _check_output(path: Path | None) -> None:
-    if path is not None and not path.parent.is_dir():
-        from .inputs import InputError
+OUTPUTS = ("json", "ply", "plot")
 
-        raise InputError(f"{path}: its folder does not exist; create it first")
+
+def _inputs(args) -> tuple[list[Path], list[Path]]:
+    """(files, folders) this run reads: the outputs must stay clear of them."""
+    paths = [getattr(args, k, None) for k in ("gt", "pred", "pred_labels", "trajectory")]
+    paths = [Path(p) for p in paths if p is not None and Path(p).exists()]
+    files = [p for p in paths if not p.is_dir()]
+    folders = [p for p in paths if p.is_dir()]
+    for p in paths:  # label tables read beside a ground-truth file
+        base = p if p.is_dir() else p.parent
+        files += [c for c in (base / "labels.json", base.parent / "labels.json", base / "tracks.h5") if c.is_file()]
+    return files, folders
+
+
+def _real(path: Path) -> Path:
+    return Path(os.path.realpath(path))
+
+
+def _is_ground_truth_folder(folder: Path) -> bool:
+    """A seed folder written by the generator (manifest.json and ground_truth/) or a ground_truth/ folder."""
+    return folder.name == "ground_truth" or ((folder / "manifest.json").is_file() and (folder / "ground_truth").is_dir())
+
+
+def check_outputs(args) -> None:
+    """Refuse, before any work, outputs that would land on an input, inside a seed or
+    ground-truth folder or an input folder, on a folder, twice, or where nothing can be written."""
+    from .inputs import InputError
+
+    outputs = [(f"--{k}", Path(getattr(args, k))) for k in OUTPUTS if getattr(args, k, None) is not None]
+    files, folders = _inputs(args)
+    protected_files = {_real(p) for p in files}
+    protected_folders = {_real(p) for p in folders}
+    seen: dict[Path, str] = {}
+    for flag, path in outputs:
+        real = _real(path)
+        if real in seen:
+            raise InputError(f"{flag} {path}: the same file as {seen[real]}; give each output its own name")
+        seen[real] = flag
+        if path.is_dir():
+            raise InputError(f"{flag} {path}: is a folder; name a file to write")
+        if real in protected_files or (path.exists() and any(path.samefile(p) for p in files)):
+            raise InputError(f"{flag} {path}: is an input of this run; write the output elsewhere")
+        for folder in (real.parent, *real.parent.parents):
+            if folder in protected_folders or _is_ground_truth_folder(folder):
+                what = "a seed or ground-truth folder," if _is_ground_truth_folder(folder) else "an input folder"
+                raise InputError(f"{flag} {path}: lies inside {what} {folder}; outputs never go into the "
+                                 "ground truth or the inputs, write it elsewhere")
+        if not path.parent.is_dir():
+            raise InputError(f"{flag} {path}: its folder does not exist; create it first")
+        try:  # a real write test: permissions, read-only or special file systems (/proc)
+            fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".probe")
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            raise InputError(f"{flag} {path}: cannot write in {path.parent} ({exc.strerror or exc}); "
+                             "choose a writable folder") from None
 
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    from exporters.hdf5 import DamagedFileError
+
     from .api import colour_ply, score_coverage, score_reconstruction, score_tracks
     from .inputs import InputError
     from .report import coverage_plot, coverage_table, reconstruction_table, tracks_table, write_json
 
     try:
-        for out in (getattr(args, "json", None), getattr(args, "ply", None), getattr(args, "plot", None)):
-            _check_output(out)
+        check_outputs(args)
         if args.task == "reconstruction":
             results, ctx = score_reconstruction(args.pred, args.gt, args.tau, tuple(args.sweep), args.crop,
                                                 args.crop_margin, args.voxel, args.pred_labels, not args.static_only)
             print(reconstruction_table(results))
             if args.ply:
-                colour_ply(args.ply, ctx, args.tau)
+                _write(args.ply, colour_ply, ctx, args.tau)
         elif args.task == "tracks":
             results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)
             print(tracks_table(results))
@@ -84,17 +142,30 @@ def main(argv=None) -> int:
                                      max_depth=args.max_depth)
             print(coverage_table(results))
             if args.plot:
-                coverage_plot(args.plot, {Path(str(args.trajectory)).name: results["coverage"]},
-                              f"coverage of {args.gt.name}, AUC {results['auc']:.3f}")
+                _write(args.plot, coverage_plot, {Path(str(args.trajectory)).name: results["coverage"]},
+                       f"coverage of {args.gt.name}, AUC {results['auc']:.3f}")
         if args.json:
-            write_json(args.json, results)
-    except InputError as exc:
+            _write(args.json, write_json, results)
+    except (InputError, DamagedFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except MemoryError:
-        print("error: out of memory; voxel-downsample the clouds (--voxel)", file=sys.stderr)
-        return 1
+        print("error: out of memory; voxel-downsample the clouds (--voxel) or score a smaller cloud", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("error: interrupted; nothing more was written", file=sys.stderr)
+        return 130
     return 0
+
+
+def _write(path: Path, writer, *args) -> None:
+    """Run one output writer; a failure to write is one line naming the file."""
+    from .inputs import InputError
+
+    try:
+        writer(path, *args)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write it ({exc.strerror or exc.__class__.__name__})") from None
 
 
 if __name__ == "__main__":

@@ -198,46 +198,18 @@ def score_tracks(gt: str | Path, pred: str | Path | dict, mode: str = "first", r
     trajectory's ``tracks.h5`` (``gt``: that file or its trajectory folder). ``pred``: an
     NPZ (or dict) with ``tracks`` (Q, T, 2) (x, y) pixels and ``occluded`` (Q, T) bool, in the
     order of ``tapvid/query_points``."""
-    import h5py
-
-    from .tracking import tapvid_metrics
+    from .tracking import read_tracks_gt, read_tracks_pred, tapvid_metrics
 
     gt = Path(gt)
     if gt.is_dir():
         gt = gt / "tracks.h5"
     if not gt.is_file():
         raise InputError(f"{gt}: no such file; give a trajectory's tracks.h5 or its folder")
-    try:
-        with h5py.File(gt, "r") as f:
-            g = f["tapvid"]
-            truth = {k: g[k][()] for k in ("query_points", "tracks", "occluded")}
-            size = (int(f["cameras"].attrs["width"]), int(f["cameras"].attrs["height"]))
-    except (OSError, KeyError) as exc:
-        raise InputError(f"{gt}: not a tracks.h5 with a TAP-Vid subset ({exc.__class__.__name__})") from None
-    source = "arrays"
-    if not isinstance(pred, dict):
-        source = str(pred)
-        pred = Path(pred)
-        if not pred.is_file():
-            raise InputError(f"{pred}: no such file")
-        try:
-            with np.load(pred, allow_pickle=False) as z:
-                pred = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError) as exc:
-            raise InputError(f"{pred}: unreadable NPZ ({exc.__class__.__name__})") from None
-    if "tracks" not in pred or "occluded" not in pred:
-        raise InputError(f"{source}: needs arrays 'tracks' (Q, T, 2) and 'occluded' (Q, T)")
-    q, t = truth["occluded"].shape
-    tracks, occluded = np.asarray(pred["tracks"]), np.asarray(pred["occluded"])
-    if tracks.shape != (q, t, 2) or occluded.shape != (q, t):
-        raise InputError(f"{source}: tracks {tracks.shape} and occluded {occluded.shape}; expected ({q}, {t}, 2) and "
-                         f"({q}, {t}) for this ground truth's {q} queries and {t} frames")
-    if not np.issubdtype(tracks.dtype, np.number) or not np.isfinite(tracks[~occluded.astype(bool)]).all():
-        raise InputError(f"{source}: track positions of visible points must be finite numbers")
+    truth, size = read_tracks_gt(gt)
     if mode not in ("first", "strided"):
         raise InputError(f"query mode must be first or strided, got {mode!r}")
-    tracks = np.where(np.isfinite(tracks), tracks, 0.0)
-    metrics = tapvid_metrics(truth["tracks"], truth["occluded"], tracks, occluded.astype(bool),
+    tracks, occluded, source = read_tracks_pred(pred, *truth["occluded"].shape)
+    metrics = tapvid_metrics(truth["tracks"], truth["occluded"], tracks, occluded,
                              truth["query_points"][:, 0], mode, size, resize_to)
     return {"task": "tracks", "parameters": {"gt": str(gt), "pred": source, "query_mode": mode,
                                              "image_size": list(size), "resize_to": list(resize_to) if resize_to else None,

@@ -17,6 +17,21 @@ class InputError(ValueError):
     """Bad input to the evaluation (one line: what is wrong, what to do)."""
 
 
+MAX_COORDINATE = 1e9  # metres: beyond it a coordinate is refused (squared distances must stay finite)
+
+
+def regular_file(path: str | Path, what: str = "input") -> Path:
+    """``path`` if it names a regular file (symlinks followed); else InputError saying what it is."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; give the {what} file")
+    if not path.exists():
+        raise InputError(f"{path}: no such file" + (" (a broken symbolic link)" if path.is_symlink() else ""))
+    if not path.is_file():
+        raise InputError(f"{path}: not a regular file (a device, pipe or socket); give the {what} file")
+    return path
+
+
 @dataclass
 class Cloud:
     """``points`` (N, 3) float64 metres; ``labels`` (N,) int64 label ids or None;
@@ -28,6 +43,32 @@ class Cloud:
     source: str
     names: list[str] | None = None
     dynamic: np.ndarray | None = None
+
+    def __post_init__(self):
+        """Refuse what cannot be scored exactly: not (N, 3) real numbers, NaN/inf or absurd
+        coordinates, labels or flags that are not one integer per point."""
+        p = np.asarray(self.points)
+        if p.ndim != 2 or p.shape[1] != 3 or p.dtype.kind not in "iuf":
+            raise InputError(f"{self.source}: points must be an (N, 3) array of real numbers, got {p.dtype} {p.shape}")
+        self.points = p = p.astype(np.float64, copy=False)
+        bad = ~np.isfinite(p).all(axis=1)
+        if bad.any():
+            raise InputError(f"{self.source}: {int(bad.sum())} points have NaN or infinite coordinates "
+                             f"(first at row {int(np.argmax(bad))}); remove them")
+        if p.size and np.abs(p).max() > MAX_COORDINATE:
+            raise InputError(f"{self.source}: a coordinate is {np.abs(p).max():.3g} m from the origin (limit "
+                             f"{MAX_COORDINATE:.0e} m); give metres in the ground truth's world frame")
+        for name in ("labels", "dynamic"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            value = np.asarray(value)
+            if value.shape != (len(p),):
+                raise InputError(f"{self.source}: {len(value) if value.ndim else 'a scalar of'} {name} for "
+                                 f"{len(p)} points; give one per point")
+            if value.dtype.kind not in ("iu" if name == "labels" else "iub"):
+                raise InputError(f"{self.source}: {name} must be integers, got dtype {value.dtype}")
+            setattr(self, name, value.astype(np.int64) if name == "labels" else value.astype(bool))
 
     def __len__(self) -> int:
         return len(self.points)
@@ -85,7 +126,9 @@ def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, list[str
             try:
                 names = json.loads(c[7:])
             except ValueError:
-                names = None
+                raise InputError(f"{path}: its header's label table is not valid JSON; regenerate or fix the file") from None
+            if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+                raise InputError(f"{path}: its header's label table is not a list of class names")
     dynamic = d.vertex["dynamic"].astype(bool) if "dynamic" in d.vertex else None
     return d.points, label, names, dynamic
 
@@ -95,18 +138,14 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
     NPY ((N, 3) or (N, 4)), NPZ (arrays ``points`` [+ ``labels``], or a single (N, 3|4) array)
     or text (x y z [label] per line). ``labels_path``: a separate file with one label per
     point (text or NPY); labels may be ids or, with ``label_names``, class names."""
-    path = Path(path)
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder; give a point cloud file (PLY, NPY, NPZ or text)")
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    path = regular_file(path, "point cloud (PLY, NPY, NPZ or text)")
     suffix = path.suffix.lower()
     labels = file_names = dynamic = None
     try:
         if suffix == ".ply":
             points, labels, file_names, dynamic = _read_ply_cloud(path)
         elif suffix == ".npy":
-            points, labels = _split_columns(np.load(path, allow_pickle=False), path)
+            points, labels = _split_columns(_npy(path), path)
         elif suffix == ".npz":
             with np.load(path, allow_pickle=False) as z:
                 keys = list(z.keys())
@@ -115,6 +154,9 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
                     labels = z["labels"] if "labels" in keys else (z["label"] if "label" in keys else None)
                     if points.ndim != 2 or points.shape[1] != 3:
                         raise InputError(f"{path}: 'points' has shape {points.shape}; expected (N, 3)")
+                    if labels is not None and labels.shape != (len(points),):
+                        raise InputError(f"{path}: 'labels' has shape {labels.shape} for {len(points)} points; "
+                                         "give one label per point")
                 elif len(keys) == 1:
                     points, labels = _split_columns(z[keys[0]], path)
                 else:
@@ -128,14 +170,13 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
             raise
         raise InputError(f"{path}: unreadable ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     points = np.asarray(points)
-    if not np.issubdtype(points.dtype, np.number):
-        raise InputError(f"{path}: coordinates are not numbers (dtype {points.dtype})")
-    points = points.astype(np.float64)
+    if points.dtype.kind not in "iuf":
+        raise InputError(f"{path}: coordinates are not real numbers (dtype {points.dtype})")
     if len(points) == 0:
         raise InputError(f"{path}: empty point cloud")
-    bad = ~np.isfinite(points).all(axis=1)
-    if bad.any():
-        raise InputError(f"{path}: {int(bad.sum())} points have NaN or infinite coordinates (first at row {int(np.argmax(bad))}); remove them")
+    if labels is not None and label_names is not None and file_names is not None and [n.lower() for n in label_names] != [n.lower() for n in file_names]:
+        raise InputError(f"{path}: its label table {file_names} differs from the ground truth's {label_names}; "
+                         "label ids would not match: relabel it with the ground truth's table (labels.json)")
     if labels_path is not None:
         if labels is not None:
             raise InputError(f"{path} already has labels; do not pass a separate label file too")
@@ -147,13 +188,21 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
     return Cloud(points, labels, str(path), file_names, dynamic)
 
 
+def _npy(path: Path) -> np.ndarray:
+    array = np.load(path, allow_pickle=False, mmap_mode=None)
+    if not isinstance(array, np.ndarray):
+        raise InputError(f"{path}: an NPZ archive under an .npy name; rename it .npz")
+    return array
+
+
 def _read_label_file(path: Path) -> np.ndarray:
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    path = regular_file(path, "label")
     if path.suffix.lower() == ".npy":
         try:
-            arr = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
+            arr = _npy(path)
+        except (OSError, ValueError, EOFError) as exc:
+            if isinstance(exc, InputError):
+                raise
             raise InputError(f"{path}: unreadable label file ({exc.__class__.__name__})") from None
         return arr.reshape(-1) if arr.ndim == 2 and 1 in arr.shape else arr
     text = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
@@ -172,6 +221,8 @@ def _label_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.nd
             raise InputError(f"{path}: labels must be integer ids (-1 = unlabelled) or class names")
     if labels.dtype.kind not in "iuf":
         raise InputError(f"{path}: labels must be integer ids or class names (dtype {labels.dtype})")
+    if labels.dtype.kind == "u" and labels.size and labels.max() >= 2 ** 31:
+        raise InputError(f"{path}: label id {int(labels.max())} is not a class id (-1 = unlabelled, else 0..classes-1)")
     return labels.astype(np.int64)
 
 

@@ -76,8 +76,11 @@ def write_atomic(path: str | Path, data: bytes) -> Path:
     """Write through a temporary file renamed into place (never a half-written file)."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+    try:
+        tmp.write_bytes(data)
+        tmp.replace(path)
+    finally:  # no temporary file left behind when the write or the rename fails
+        tmp.unlink(missing_ok=True)
     return path
 
 

@@ -17,9 +17,72 @@ positions are first scaled to that size, as the TAP-Vid benchmark does.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from exporters.hdf5 import DamagedFileError, attribute, group, open_file
+
+from .inputs import InputError, regular_file
+
 THRESHOLDS = (1, 2, 4, 8, 16)
+MAX_PIXELS = 1e6  # |x|, |y| of a visible predicted position: beyond it, refused (not a pixel position)
+
+
+def read_tracks_gt(path: Path) -> tuple[dict, tuple[int, int]]:
+    """The TAP-Vid subset of a tracks.h5 and its image size (W, H), checked (checksums where
+    the file has them, consistency always); a damaged file raises InputError naming it."""
+    from exporters.tracks import read_tapvid
+
+    try:
+        with open_file(path) as f:
+            truth = read_tapvid(f, path)
+            cams = group(f, "cameras", path)
+            size = (int(attribute(cams, "width", path)), int(attribute(cams, "height", path)))
+    except DamagedFileError as exc:
+        raise InputError(f"{exc} (or give a trajectory's tracks.h5 written by python -m generator)") from None
+    if min(size) <= 0:
+        raise InputError(f"{path}: damaged file (image size {size}); regenerate this seed with python -m generator")
+    return truth, size
+
+
+def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.ndarray, str]:
+    """Predicted ``tracks`` (Q, T, 2) float64 and ``occluded`` (Q, T) bool from an NPZ file
+    or a dict, checked against the ground truth's Q queries and T frames. Positions of
+    points predicted occluded are ignored (set to 0)."""
+    source = "arrays"
+    if not isinstance(pred, dict):
+        source = str(pred)
+        path = regular_file(pred, "predicted tracks")
+        if path.suffix.lower() != ".npz":
+            raise InputError(f"{path}: predicted tracks must be an NPZ with arrays 'tracks' (Q, T, 2) and "
+                             "'occluded' (Q, T) (numpy.savez); got a " + (path.suffix or "suffix-less") + " file")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                if not hasattr(z, "files"):
+                    raise ValueError("not an NPZ archive")
+                pred = {k: z[k] for k in z.files if k in ("tracks", "occluded")}
+        except (OSError, ValueError, EOFError) as exc:
+            raise InputError(f"{path}: unreadable NPZ ({exc.__class__.__name__}); write it with numpy.savez") from None
+    if "tracks" not in pred or "occluded" not in pred:
+        raise InputError(f"{source}: needs arrays 'tracks' (Q, T, 2) and 'occluded' (Q, T)")
+    tracks, occluded = np.asarray(pred["tracks"]), np.asarray(pred["occluded"])
+    if tracks.shape != (queries, frames, 2) or occluded.shape != (queries, frames):
+        raise InputError(f"{source}: tracks {tracks.shape} and occluded {occluded.shape}; expected ({queries}, {frames}, 2) "
+                         f"and ({queries}, {frames}) for this ground truth's {queries} queries and {frames} frames")
+    if tracks.dtype.kind not in "iuf":
+        raise InputError(f"{source}: tracks must be real numbers (dtype {tracks.dtype})")
+    if occluded.dtype.kind != "b" and not (occluded.dtype.kind in "iuf" and np.isin(occluded, (0, 1)).all()):
+        raise InputError(f"{source}: occluded must be booleans (or 0/1), dtype {occluded.dtype}")
+    occluded = occluded.astype(bool)
+    visible = tracks[~occluded].astype(np.float64)
+    if not np.isfinite(visible).all():
+        raise InputError(f"{source}: track positions of visible points must be finite numbers")
+    if visible.size and np.abs(visible).max() > MAX_PIXELS:
+        raise InputError(f"{source}: a visible track position is {np.abs(visible).max():.3g} pixels from the origin "
+                         f"(limit {MAX_PIXELS:.0e}); positions are (x, y) pixels of the stored frames")
+    tracks = np.where(occluded[..., None], 0.0, tracks.astype(np.float64))
+    return tracks, occluded, source
 
 
 def evaluation_mask(query_t: np.ndarray, num_frames: int, mode: str = "first") -> np.ndarray:
@@ -44,6 +107,8 @@ def tapvid_metrics(gt_tracks: np.ndarray, gt_occluded: np.ndarray, pred_tracks: 
     if resize_to is not None:
         if image_size is None:
             raise ValueError("resize_to needs image_size")
+        if len(resize_to) != 2 or not all(np.isfinite(v) and v > 0 for v in resize_to):
+            raise InputError(f"resize_to must be a positive (width, height) in pixels, got {resize_to}")
         scale = np.array(resize_to, np.float64) / np.array(image_size, np.float64)
         gt_tracks, pred_tracks = gt_tracks * scale, pred_tracks * scale
     evaluated = evaluation_mask(query_t, gt_tracks.shape[1], mode)

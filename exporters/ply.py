@@ -80,12 +80,15 @@ def write_ply(path: str | Path, vertex: dict[str, np.ndarray], faces: np.ndarray
             frec[k] = face[k]
     header.append("end_header")
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")  # never a half-written file under the real name
-    with open(tmp, "wb") as f:
-        f.write(("\n".join(header) + "\n").encode("ascii"))
-        f.write(vrec.tobytes())
-        if frec is not None:
-            f.write(frec.tobytes())
-    tmp.replace(path)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(("\n".join(header) + "\n").encode("ascii"))
+            f.write(vrec.tobytes())
+            if frec is not None:
+                f.write(frec.tobytes())
+        tmp.replace(path)
+    finally:  # nothing left behind when the write or the rename fails
+        tmp.unlink(missing_ok=True)
     return path
 
 

@@ -14,7 +14,11 @@ Layout (all lengths in metres, pixels as (x, y) with the top-left pixel's centre
   /coverage   (T,) share of all points observed at least once after each frame
   /tapvid     query_points (Q, 3) (t, y, x); tracks (Q, T, 2) (x, y); occluded (Q, T) bool;
               tracks_3d (Q, T, 3) world metres; point_ids (Q,)
-  attrs       format_version, labels (JSON), conventions
+  attrs       format_version, labels (JSON, fixed-length UTF-8), conventions
+
+Every dataset carries HDF5's Fletcher-32 checksum and the file uses the HDF5 1.10 format
+(checksummed metadata), so a damaged file fails to read instead of giving other values
+(exporters/hdf5.py); ``objects/names`` holds fixed-length UTF-8 bytes for the same reason.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import numpy as np
 from generator.geometry.camera import project
 
 from . import FORMAT_VERSION
+from .hdf5 import CHECKSUM, DamagedFileError, attribute, create_file, damaged, dataset, open_file, read, text, text_attribute
 
 _CHUNK = 1 << 16
 
@@ -46,38 +51,39 @@ class TrackWriter:
     def __init__(self, path: str | Path, table: dict, dynamic_names: list[str], labels: list[str],
                  K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0):
         self.path = Path(path)
-        self.f = h5py.File(self.path, "w")
+        self.f = create_file(self.path)  # checksummed: a flipped byte fails on read (exporters/hdf5.py)
         self.table, self.queries, self.seed = table, queries, seed
         self.K, self.width, self.height = np.asarray(K, float), int(width), int(height)
         f = self.f
-        f.attrs.update({"format_version": FORMAT_VERSION, "labels": json.dumps(labels),
+        f.attrs.update({"format_version": FORMAT_VERSION, "labels": text_attribute(json.dumps(labels)),
                         "conventions": "metres; OpenCV camera (x right, y down, z forward); poses world_from_camera; "
                                        "pixels (x, y), top-left pixel centre (0.5, 0.5); depth = planar z"})
         cams = f.create_group("cameras")
         cams.attrs.update({"width": self.width, "height": self.height})
-        cams["K"] = self.K
-        cams.create_dataset("world_from_camera", (0, 4, 4), maxshape=(None, 4, 4), dtype="f8", chunks=(64, 4, 4))
-        cams.create_dataset("timestamps", (0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+        dataset(cams, "K", self.K)
+        cams.create_dataset("world_from_camera", (0, 4, 4), maxshape=(None, 4, 4), dtype="f8", chunks=(64, 4, 4), **CHECKSUM)
+        cams.create_dataset("timestamps", (0,), maxshape=(None,), dtype="f8", chunks=(1024,), **CHECKSUM)
         pts = f.create_group("points")
         opts = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
         for name, dtype in (("local", "f8"), ("label", "i4"), ("instance", "i4"), ("dynamic_object", "i4")):
             key = {"label": "labels"}.get(name, name)
-            pts.create_dataset(name, data=np.asarray(table[key], dtype=dtype), **opts)
+            dataset(pts, name, np.asarray(table[key], dtype=dtype), **opts)
         obj = f.create_group("objects")
-        obj["names"] = np.array(dynamic_names, dtype=h5py.string_dtype())
+        dataset(obj, "names", np.array(dynamic_names, dtype=object))  # fixed-length UTF-8 bytes
         d = len(dynamic_names)
-        obj.create_dataset("world_from_object", (0, d, 4, 4), maxshape=(None, d, 4, 4), dtype="f8", chunks=(16, max(d, 1), 4, 4))
+        obj.create_dataset("world_from_object", (0, d, 4, 4), maxshape=(None, d, 4, 4), dtype="f8",
+                           chunks=(16, max(d, 1), 4, 4), **CHECKSUM)
         vis = f.create_group("visibility")
-        vis.create_dataset("offsets", data=np.zeros(1, np.int64), maxshape=(None,), chunks=(1024,))
-        vis.create_dataset("index", (0,), maxshape=(None,), dtype="i4", chunks=(_CHUNK,), **opts)
-        vis.create_dataset("xy", (0, 2), maxshape=(None, 2), dtype="f4", chunks=(_CHUNK, 2), **opts)
-        vis.create_dataset("depth", (0,), maxshape=(None,), dtype="f4", chunks=(_CHUNK,), **opts)
+        dataset(vis, "offsets", np.zeros(1, np.int64), maxshape=(None,), chunks=(1024,))
+        vis.create_dataset("index", (0,), maxshape=(None,), dtype="i4", chunks=(_CHUNK,), **opts, **CHECKSUM)
+        vis.create_dataset("xy", (0, 2), maxshape=(None, 2), dtype="f4", chunks=(_CHUNK, 2), **opts, **CHECKSUM)
+        vis.create_dataset("depth", (0,), maxshape=(None,), dtype="f4", chunks=(_CHUNK,), **opts, **CHECKSUM)
         self.dyn_ids = np.flatnonzero(np.asarray(table["dynamic_object"]) >= 0).astype(np.int32)
         dyn = f.create_group("dynamic")
-        dyn["point_ids"] = self.dyn_ids
+        dataset(dyn, "point_ids", self.dyn_ids)
         dyn.create_dataset("positions", (0, len(self.dyn_ids), 3), maxshape=(None, len(self.dyn_ids), 3), dtype="f4",
-                           chunks=(1, max(len(self.dyn_ids), 1), 3), **opts)
-        f.create_dataset("coverage", (0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+                           chunks=(1, max(len(self.dyn_ids), 1), 3), **opts, **CHECKSUM)
+        f.create_dataset("coverage", (0,), maxshape=(None,), dtype="f8", chunks=(1024,), **CHECKSUM)
 
     def add_frame(self, timestamp: float, world_from_camera: np.ndarray, world_points: np.ndarray,
                   visible: np.ndarray, object_matrices: np.ndarray, coverage: float) -> None:
@@ -116,11 +122,11 @@ class TrackWriter:
         q_xy = tracks[np.arange(len(ids)), q_t]
         g = f.create_group("tapvid")
         g.attrs["conventions"] = "TAP-Vid: query_points (t, y, x); tracks (x, y) pixels; occluded True = not visible"
-        g["point_ids"] = ids.astype(np.int32)
-        g["query_points"] = np.column_stack([q_t, q_xy[:, 1], q_xy[:, 0]]).astype(np.float32)
-        g["tracks"] = tracks.astype(np.float32)
-        g["occluded"] = occluded
-        g["tracks_3d"] = tracks_3d.astype(np.float32)
+        dataset(g, "point_ids", ids.astype(np.int32))
+        dataset(g, "query_points", np.column_stack([q_t, q_xy[:, 1], q_xy[:, 0]]).astype(np.float32))
+        dataset(g, "tracks", tracks.astype(np.float32))
+        dataset(g, "occluded", occluded)
+        dataset(g, "tracks_3d", tracks_3d.astype(np.float32))
         f.close()
         return self.path
 
@@ -137,23 +143,79 @@ def world_positions(data: dict, t: int, ids: np.ndarray) -> np.ndarray:
     return out
 
 
+_ARRAYS = {"K": "cameras/K", "world_from_camera": "cameras/world_from_camera", "timestamps": "cameras/timestamps",
+           "local": "points/local", "label": "points/label", "instance": "points/instance",
+           "dynamic_object": "points/dynamic_object", "world_from_object": "objects/world_from_object",
+           "offsets": "visibility/offsets", "index": "visibility/index", "xy": "visibility/xy",
+           "depth": "visibility/depth", "coverage": "coverage"}
+
+
 def read_tracks_file(f: h5py.File) -> dict:
-    return {"K": f["cameras/K"][()], "world_from_camera": f["cameras/world_from_camera"][()],
-            "timestamps": f["cameras/timestamps"][()], "local": f["points/local"][()], "label": f["points/label"][()],
-            "instance": f["points/instance"][()], "dynamic_object": f["points/dynamic_object"][()],
-            "world_from_object": f["objects/world_from_object"][()], "offsets": f["visibility/offsets"][()],
-            "index": f["visibility/index"][()], "xy": f["visibility/xy"][()], "depth": f["visibility/depth"][()],
-            "coverage": f["coverage"][()]}
+    """The arrays of an open tracks.h5 (checked: a damaged dataset raises DamagedFileError)."""
+    return {key: read(f, name) for key, name in _ARRAYS.items()}
+
+
+def check_tracks(data: dict, path) -> None:
+    """Shapes and indices that must agree in any intact tracks.h5 (a cheap guard, also for
+    files written before the checksums); raises :class:`DamagedFileError`."""
+    T, N = len(data["world_from_camera"]), len(data["local"])
+    off, index = data["offsets"], data["index"]
+    problems = [
+        (data["K"].shape != (3, 3) or not np.isfinite(data["K"]).all() or data["K"][0, 0] <= 0 or data["K"][1, 1] <= 0,
+         "cameras/K is not a valid intrinsic matrix"),
+        (data["world_from_camera"].shape[1:] != (4, 4) or len(data["timestamps"]) != T, "camera arrays disagree"),
+        (any(len(data[k]) != N for k in ("label", "instance", "dynamic_object")), "point arrays disagree"),
+        (len(off) != T + 1 or off[0] != 0 or np.any(np.diff(off) < 0) or off[-1] != len(index), "visibility offsets"),
+        (len(data["xy"]) != len(index) or len(data["depth"]) != len(index), "visibility arrays disagree"),
+        (len(index) and (index.min() < 0 or index.max() >= N), "visibility index outside the points"),
+    ]
+    for bad, what in problems:
+        if bad:
+            raise damaged(path, what)
 
 
 def read_tracks(path: str | Path) -> dict:
-    """Everything in a tracks.h5 as numpy arrays (plus 'tapvid' and 'labels')."""
-    with h5py.File(path, "r") as f:
-        if f.attrs.get("format_version") != FORMAT_VERSION:
-            raise ValueError(f"{path}: tracks format {f.attrs.get('format_version')!r}, this reader reads {FORMAT_VERSION}")
+    """Everything in a tracks.h5 as numpy arrays (plus 'tapvid' and 'labels'). A damaged file
+    (checksum, structure) raises :class:`DamagedFileError` naming it."""
+    path = Path(path)
+    with open_file(path) as f:
+        version = text(attribute(f, "format_version")) if "format_version" in f.attrs else None
+        if version != FORMAT_VERSION:
+            raise DamagedFileError(f"{path}: tracks format {version!r}, this reader reads {FORMAT_VERSION} "
+                                   "(update buildee-sites or regenerate the seed)")
         data = read_tracks_file(f)
-        data["labels"] = json.loads(f.attrs["labels"])
-        data["dynamic_positions"], data["dynamic_ids"] = f["dynamic/positions"][()], f["dynamic/point_ids"][()]
+        check_tracks(data, path)
+        try:
+            data["labels"] = json.loads(text(attribute(f, "labels")))
+        except ValueError as exc:
+            raise damaged(path, f"attribute labels: {exc.__class__.__name__}") from None
+        data["dynamic_positions"], data["dynamic_ids"] = read(f, "dynamic/positions"), read(f, "dynamic/point_ids")
         if "tapvid" in f:
-            data["tapvid"] = {k: f["tapvid"][k][()] for k in f["tapvid"]}
+            data["tapvid"] = read_tapvid(f, path)
     return data
+
+
+TAPVID = ("query_points", "tracks", "occluded", "tracks_3d", "point_ids")
+
+
+def read_tapvid(f: h5py.File, path) -> dict:
+    """The TAP-Vid query subset of an open tracks.h5, checked for consistency (shapes, query
+    frames, finite positions, each query visible at its own frame where it was picked)."""
+    if "tapvid" not in f:
+        raise damaged(path, "no tapvid group")
+    tv = {k: read(f["tapvid"], k, path) for k in TAPVID}
+    q, T = len(tv["point_ids"]), len(f["cameras/world_from_camera"])
+    shapes = {"query_points": (q, 3), "tracks": (q, T, 2), "occluded": (q, T), "tracks_3d": (q, T, 3)}
+    for k, shape in shapes.items():
+        if tv[k].shape != shape:
+            raise damaged(path, f"tapvid/{k} has shape {tv[k].shape}, expected {shape}")
+    t = tv["query_points"][:, 0]
+    if q and (not np.isfinite(tv["query_points"]).all() or np.any(t != np.round(t)) or t.min() < 0 or t.max() >= T):
+        raise damaged(path, "tapvid/query_points: query frames outside the trajectory")
+    if q:
+        ti = t.astype(np.int64)
+        at_query = tv["tracks"][np.arange(q), ti]
+        if (tv["occluded"][np.arange(q), ti].any() or not np.isfinite(tv["tracks"][~tv["occluded"]]).all()
+                or not np.array_equal(at_query[:, ::-1], tv["query_points"][:, 1:])):
+            raise damaged(path, "tapvid tracks disagree with their query points")
+    return tv

@@ -1,0 +1,126 @@
+"""HDF5 files that notice their own corruption, and the one way our readers report it.
+
+Every dataset we write carries HDF5's Fletcher-32 checksum filter (so every dataset is
+chunked, small ones as a single chunk), and files use the HDF5 1.10 file format, whose
+superblock, object headers and chunk indexes carry checksums of their own. Text that must
+be protected is stored as fixed-length strings: variable-length strings live in HDF5's
+global heap, which has no checksum. A flipped byte in such a file makes h5py fail instead
+of returning a different value; :func:`read` turns that failure into one
+:class:`DamagedFileError` line naming the file and what to do.
+
+Files written before these checksums (format 0.3 of this week) still read: the checks are
+per dataset and simply absent there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+LIBVER = ("v110", "v110")  # HDF5 >= 1.10 reads these files (h5py >= 2.10)
+CHECKSUM = {"fletcher32": True}
+H5_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError)
+REMEDY = ("regenerate this seed with python -m generator (run python -m generator verify on the output "
+          "folder to list every damaged file)")
+
+
+class DamagedFileError(ValueError):
+    """A file that is truncated, damaged or not what it should be (one line: which file, what to do)."""
+
+
+def damaged(path: str | Path, what: str) -> DamagedFileError:
+    """The error for a damaged file: names it, says what failed and what to do."""
+    return DamagedFileError(f"{path}: damaged file ({what}); {REMEDY}")
+
+
+def create_file(path: str | Path) -> h5py.File:
+    """A new HDF5 file (truncating ``path``) in the checksummed 1.10 format."""
+    return h5py.File(path, "w", libver=LIBVER)
+
+
+def dataset(group: h5py.Group, name: str, data=None, **kw) -> h5py.Dataset:
+    """``group.create_dataset`` with the Fletcher-32 checksum. Arrays without explicit
+    ``chunks`` become one chunk; text becomes fixed-length UTF-8 bytes (checksummed)."""
+    if data is not None:
+        data = np.asarray(data)
+        if data.dtype.kind in "OUT" or h5py.check_string_dtype(data.dtype) is not None:
+            data = _fixed_text(data)
+        if "chunks" not in kw:
+            kw["chunks"] = tuple(max(1, n) for n in data.shape) or None
+            if 0 in data.shape:
+                kw.setdefault("maxshape", (None,) * data.ndim)
+    return group.create_dataset(name, data=data, **kw, **CHECKSUM)
+
+
+def _fixed_text(values: np.ndarray) -> np.ndarray:
+    encoded = [v if isinstance(v, bytes) else str(v).encode("utf-8") for v in values.ravel()]
+    width = max((len(v) for v in encoded), default=1) or 1
+    return np.array(encoded, dtype=f"S{width}").reshape(values.shape)
+
+
+def text_attribute(value: str) -> np.bytes_:
+    """A fixed-length string attribute: it lives in the (checksummed) object header."""
+    return np.bytes_(value.encode("utf-8"))
+
+
+def text(value) -> str:
+    """An attribute or dataset element read back as ``str`` (fixed- or variable-length)."""
+    if isinstance(value, (bytes, np.bytes_)):
+        return bytes(value).decode("utf-8")
+    return str(value)
+
+
+def open_file(path: str | Path) -> h5py.File:
+    """Open an HDF5 file for reading; a damaged or foreign file raises :class:`DamagedFileError`."""
+    path = Path(path)
+    if not path.is_file():
+        raise DamagedFileError(f"{path}: no such file; {REMEDY}")
+    try:
+        return h5py.File(path, "r")
+    except H5_ERRORS as exc:
+        raise damaged(path, f"not a readable HDF5 file: {_reason(exc)}") from None
+
+
+def read(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None, sel=()) -> np.ndarray:
+    """``node[key][sel]`` as numpy; a missing, damaged or checksum-failing dataset raises
+    :class:`DamagedFileError` naming the file and the dataset."""
+    path = path if path is not None else node.file.filename
+    try:
+        return node[key][sel]
+    except H5_ERRORS as exc:
+        raise damaged(path, f"dataset {_name(node, key)}: {_reason(exc)}") from None
+
+
+def group(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None) -> h5py.Group:
+    """``node[key]`` as a group, with the same error as :func:`read`."""
+    path = path if path is not None else node.file.filename
+    try:
+        g = node[key]
+    except H5_ERRORS as exc:
+        raise damaged(path, f"group {_name(node, key)}: {_reason(exc)}") from None
+    if not isinstance(g, h5py.Group):
+        raise damaged(path, f"{_name(node, key)} is not a group")
+    return g
+
+
+def attribute(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None):
+    """``node.attrs[key]``, with the same error as :func:`read`."""
+    path = path if path is not None else node.file.filename
+    try:
+        return node.attrs[key]
+    except H5_ERRORS as exc:
+        raise damaged(path, f"attribute {_name(node, key)}: {_reason(exc)}") from None
+
+
+def _name(node, key: str) -> str:
+    base = getattr(node, "name", "/") or "/"
+    return f"{base.rstrip('/')}/{key}"
+
+
+def _reason(exc: BaseException) -> str:
+    message = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+    if isinstance(exc, KeyError):
+        message = message.strip("'\"")
+    return message[:160]
