@@ -158,6 +158,8 @@ def test_counts_and_object_tables(blend):
 def test_filter_object_names(blend):
     sim = Simulator(blend, points_density=20.0, filter_object_names=["Wall"])
     assert "Wall" not in sim.labels and "Wall" not in sim.objects
+    rgb, depth, seg = sim.render()
+    assert seg[24, 32] == -1 and abs(depth[24, 32] - 4.9) < 1e-3  # still rendered, unlabelled
     assert sim.move_camera_forward(10.0) is False  # the filtered wall is no obstacle
     with pytest.raises(ValueError, match="filter_object_names"):
         Simulator(blend, filter_object_names="Wall")
