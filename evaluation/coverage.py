@@ -19,7 +19,7 @@ from generator.geometry.raycast import SceneGeometry
 from generator.geometry.surface_points import SurfacePoints
 from generator.geometry.visibility import ViewLimits, visible_points
 
-from .inputs import InputError
+from .inputs import InputError, check_poses, check_timestamps
 
 
 @dataclass
@@ -33,6 +33,20 @@ class Poses:
     width: int | None = None
     height: int | None = None
     source: str = ""
+
+    def __post_init__(self):
+        """Refuse poses, frames or a camera that would score silently wrong (InputError)."""
+        self.world_from_camera = check_poses(self.world_from_camera, self.source or "poses")
+        if self.frames is not None:
+            f = np.asarray(self.frames)
+            if f.shape != (len(self.world_from_camera),) or f.dtype.kind not in "iu":
+                raise InputError(f"{self.source or 'poses'}: frames must be one integer per pose, got {f.dtype} {f.shape}")
+        if self.K is not None:
+            K = np.asarray(self.K, np.float64)
+            if (K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0
+                    or not (self.width and self.height and 0 < self.width <= 65536 and 0 < self.height <= 65536)):
+                raise InputError(f"{self.source or 'poses'}: the camera needs K (3, 3) with positive focal lengths "
+                                 "and a width and height in pixels")
 
 
 def coverage_auc(coverage: np.ndarray) -> float:
@@ -103,57 +117,20 @@ def read_poses(path: str | Path, scene: GroundTruthScene, frames: str = "auto") 
         traj = Trajectory.load(path)
     except TrajectoryError as exc:
         raise InputError(f"{exc}; give a trajectory .npz written by the generator or a COLMAP model folder") from None
-    poses = np.asarray(traj.poses, np.float64)
-    if len(poses) == 0:
-        raise InputError(f"{path}: the trajectory has no poses")
-    if not np.isfinite(poses).all():
-        raise InputError(f"{path}: poses contain NaN or infinite values")
-    r = poses[:, :3, :3]
-    if np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max() > 1e-4 or np.any(np.abs(poses[:, 3] - [0, 0, 0, 1]) > 1e-9):
-        raise InputError(f"{path}: poses must be rigid world_from_camera matrices (orthonormal rotation, last row 0 0 0 1)")
+    poses = check_poses(traj.poses, str(path))
     f = None
     if frames in ("auto", "timestamps"):
-        f = int(scene.frames[0]) + np.round(np.asarray(traj.timestamps) * scene.fps).astype(np.int64)
+        f = int(scene.frames[0]) + np.round(check_timestamps(traj.timestamps, len(poses), str(path)) * scene.fps).astype(np.int64)
     return Poses(poses, f, source=str(path))
 
 
 def _read_colmap(folder: Path, frames: str) -> Poses:
-    import pycolmap
+    from exporters.colmap import ColmapError, read_colmap_model
 
     if frames == "timestamps":
         raise InputError(f"{folder}: a COLMAP model has no timestamps; use --frames first")
-    rec = pycolmap.Reconstruction()
     try:
-        if (folder / "images.bin").is_file():
-            rec.read_binary(str(folder))
-        elif (folder / "images.txt").is_file():
-            rec.read_text(str(folder))
-        else:
-            raise InputError(f"{folder}: not a COLMAP model (no images.bin or images.txt)")
-    except (RuntimeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"{folder}: unreadable COLMAP model ({str(exc).splitlines()[0][:120]})") from None
-    images = sorted(rec.images.values(), key=lambda im: im.name)
-    if not images:
-        raise InputError(f"{folder}: the COLMAP model has no images")
-    cams = {im.camera_id for im in images}
-    if len(cams) != 1:
-        raise InputError(f"{folder}: {len(cams)} cameras; coverage scoring needs a single camera")
-    cam = rec.cameras[cams.pop()]
-    params = list(cam.params)
-    model = cam.model.name
-    if model == "PINHOLE":
-        fx, fy, cx, cy = params
-    elif model == "SIMPLE_PINHOLE":
-        fx, cx, cy = params
-        fy = fx
-    else:
-        raise InputError(f"{folder}: camera model {model}; coverage scoring needs PINHOLE or SIMPLE_PINHOLE")
-    poses = []
-    for im in images:
-        m = np.eye(4)
-        m[:3, :4] = im.cam_from_world().matrix()
-        poses.append(np.linalg.inv(m))
-    K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
-    return Poses(np.stack(poses), None, K, int(cam.width), int(cam.height), str(folder))
+        model = read_colmap_model(folder)
+    except ColmapError as exc:
+        raise InputError(str(exc)) from None
+    return Poses(model.world_from_camera, None, model.K, model.width, model.height, str(folder))

@@ -267,3 +267,42 @@ def read_label_table(path: Path) -> list[str]:
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise InputError(f"{path}: expected a JSON list of class names")
     return names
+
+
+MAX_SECONDS = 1e7  # timestamps beyond ~115 days are refused (frame numbers must stay exact integers)
+
+
+def check_poses(poses, source: str) -> np.ndarray:
+    """(T, 4, 4) float64 rigid world_from_camera poses: finite, proper rotations (orthonormal,
+    det +1: a reflection is not a camera pose), last row 0 0 0 1, positions within
+    MAX_COORDINATE metres."""
+    p = np.asarray(poses)
+    if p.dtype.kind not in "iuf" or p.ndim != 3 or p.shape[1:] != (4, 4):
+        raise InputError(f"{source}: poses must be (T, 4, 4) world_from_camera matrices, got {p.dtype} {p.shape}")
+    p = p.astype(np.float64)
+    if len(p) == 0:
+        raise InputError(f"{source}: the trajectory has no poses")
+    if not np.isfinite(p).all():
+        raise InputError(f"{source}: poses contain NaN or infinite values")
+    r = p[:, :3, :3]
+    bad = (np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max(axis=(1, 2)) > 1e-4) | (np.abs(np.linalg.det(r) - 1) > 1e-4)
+    bad |= np.any(np.abs(p[:, 3] - [0, 0, 0, 1]) > 1e-9, axis=1)
+    if bad.any():
+        raise InputError(f"{source}: pose {int(np.argmax(bad))} is not a rigid world_from_camera matrix (rotation "
+                         "orthonormal with determinant +1, not a reflection; last row 0 0 0 1)")
+    if np.abs(p[:, :3, 3]).max() > MAX_COORDINATE:
+        raise InputError(f"{source}: a camera lies {np.abs(p[:, :3, 3]).max():.3g} m from the origin; give metres")
+    return p
+
+
+def check_timestamps(timestamps, count: int, source: str) -> np.ndarray:
+    """(T,) float64 seconds: one per pose, finite, within 0..MAX_SECONDS."""
+    t = np.asarray(timestamps)
+    if t.dtype.kind not in "iuf" or t.shape != (count,):
+        raise InputError(f"{source}: {t.shape} timestamps of dtype {t.dtype} for {count} poses; give one number per pose")
+    t = t.astype(np.float64)
+    if not np.isfinite(t).all():
+        raise InputError(f"{source}: timestamps contain NaN or infinite values (pose {int(np.argmax(~np.isfinite(t)))})")
+    if count and (t.min() < 0 or t.max() > MAX_SECONDS):
+        raise InputError(f"{source}: timestamps must be seconds in 0..{MAX_SECONDS:.0e}, got {t.min():g}..{t.max():g}")
+    return t

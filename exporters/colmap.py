@@ -6,10 +6,14 @@ ours: the top-left pixel's centre is (0.5, 0.5)); keypoints at the exact project
 static surface points visible in that frame; 3D points = static points seen in at least two
 frames, with their tracks and the colour of the rendered pixel where first seen.
 Dynamic points never enter the model.
+
+:func:`read_colmap_model` reads a model back for scoring, refusing damaged files and
+degenerate cameras.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -44,3 +48,133 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
     if text:
         rec.write_text(str(folder))
     return rec
+
+
+# ---- reading ---------------------------------------------------------------------------------
+
+_CAMERA_PARAMS = {0: 3, 1: 4, 2: 4, 3: 5, 4: 8, 5: 8, 6: 12, 7: 5, 8: 4, 9: 5, 10: 12}  # COLMAP model id -> params
+
+
+class ColmapError(ValueError):
+    """A COLMAP model that cannot be used (one line: which file, what is wrong, what to do)."""
+
+
+@dataclass
+class ColmapModel:
+    """A single-camera pinhole model: ``K`` (3, 3), ``width``, ``height`` pixels, and per image
+    (in name order) ``names`` and ``world_from_camera`` (T, 4, 4) OpenCV poses."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    names: list[str]
+    world_from_camera: np.ndarray
+
+
+def read_colmap_model(folder: str | Path) -> ColmapModel:
+    """Read a COLMAP sparse model (binary, else text) with one PINHOLE or SIMPLE_PINHOLE camera,
+    refusing what would give silently wrong poses: truncated binary files (their byte counts
+    are checked before pycolmap reads them), zero or non-finite intrinsics, a principal point
+    outside the image, rotations that are not proper (det +1) or not finite."""
+    folder = Path(folder)
+    if (folder / "images.bin").is_file():
+        for name in ("cameras.bin", "images.bin"):
+            _check_binary_size(folder / name)
+        rec, reader = pycolmap.Reconstruction(), "read_binary"
+    elif (folder / "images.txt").is_file():
+        rec, reader = pycolmap.Reconstruction(), "read_text"
+    else:
+        raise ColmapError(f"{folder}: not a COLMAP model (no images.bin or images.txt)")
+    try:
+        getattr(rec, reader)(str(folder))
+    except Exception as exc:  # pycolmap raises whatever its C++ layer throws (RuntimeError, IndexError, ...)
+        detail = str(exc).splitlines()[0][:120] if str(exc) else exc.__class__.__name__
+        raise ColmapError(f"{folder}: unreadable COLMAP model ({detail}); re-export it") from None
+    images = sorted(rec.images.values(), key=lambda im: im.name)
+    if not images:
+        raise ColmapError(f"{folder}: the COLMAP model has no images")
+    cams = {im.camera_id for im in images}
+    if len(cams) != 1:
+        raise ColmapError(f"{folder}: {len(cams)} cameras; one camera is needed")
+    cam = rec.cameras[cams.pop()]
+    K, width, height = _pinhole(cam, folder)
+    poses = np.empty((len(images), 4, 4))
+    for k, im in enumerate(images):
+        m = np.eye(4)
+        m[:3, :4] = im.cam_from_world().matrix()
+        r = m[:3, :3]
+        if not np.isfinite(m).all() or abs(np.linalg.det(r) - 1) > 1e-6 or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
+            raise ColmapError(f"{folder}: image {im.name!r} has no proper rotation (unit quaternion); re-export the model")
+        poses[k] = np.linalg.inv(m)
+    return ColmapModel(K, width, height, [im.name for im in images], poses)
+
+
+def _pinhole(cam, folder: Path) -> tuple[np.ndarray, int, int]:
+    params, model = [float(v) for v in cam.params], cam.model.name
+    if model == "PINHOLE" and len(params) == 4:
+        fx, fy, cx, cy = params
+    elif model == "SIMPLE_PINHOLE" and len(params) == 3:
+        fx, cx, cy = params
+        fy = fx
+    else:
+        raise ColmapError(f"{folder}: camera model {model}; PINHOLE or SIMPLE_PINHOLE is needed (undistort first)")
+    width, height = int(cam.width), int(cam.height)
+    if not (0 < width <= 65536 and 0 < height <= 65536):
+        raise ColmapError(f"{folder}: camera size {width}x{height} pixels; the model is damaged, re-export it")
+    if not all(np.isfinite([fx, fy, cx, cy])) or fx <= 0 or fy <= 0:
+        raise ColmapError(f"{folder}: camera focal length fx={fx:g}, fy={fy:g} pixels; both must be positive "
+                          "(a damaged or placeholder camera), re-export the model")
+    if not (0 < cx < width and 0 < cy < height):
+        raise ColmapError(f"{folder}: principal point ({cx:g}, {cy:g}) lies outside the {width}x{height} image; "
+                          "the model is damaged, re-export it")
+    return np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]), width, height
+
+
+def _check_binary_size(path: Path) -> None:
+    """The byte count a COLMAP cameras.bin or images.bin must have, from its own counts."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ColmapError(f"{path}: unreadable ({exc.strerror})") from None
+    try:
+        end = (_cameras_end if path.name == "cameras.bin" else _images_end)(data)
+    except (ValueError, IndexError, KeyError) as exc:
+        raise ColmapError(f"{path}: damaged or truncated COLMAP file ({exc}); re-export the model") from None
+    if end != len(data):
+        raise ColmapError(f"{path}: damaged COLMAP file ({len(data)} bytes, its contents need {end}); re-export the model")
+
+
+def _u64(data: bytes, pos: int) -> int:
+    if pos + 8 > len(data):
+        raise ValueError("cut short")
+    return int.from_bytes(data[pos:pos + 8], "little")
+
+
+def _cameras_end(data: bytes) -> int:
+    n, pos = _u64(data, 0), 8
+    if n > len(data) // 24:
+        raise ValueError(f"it announces {n} cameras in {len(data)} bytes")
+    for _ in range(n):
+        if pos + 24 > len(data):
+            raise ValueError("cut short")
+        model = int.from_bytes(data[pos + 4:pos + 8], "little", signed=True)
+        if model not in _CAMERA_PARAMS:
+            raise ValueError(f"unknown camera model id {model}")
+        pos += 24 + 8 * _CAMERA_PARAMS[model]
+    return pos
+
+
+def _images_end(data: bytes) -> int:
+    n, pos = _u64(data, 0), 8
+    if n > len(data) // 69:
+        raise ValueError(f"it announces {n} images in {len(data)} bytes")
+    for _ in range(n):
+        pos += 4 + 7 * 8 + 4  # image id, quaternion, translation, camera id
+        end = data.find(b"\0", pos)
+        if end < 0:
+            raise ValueError("cut short in an image name")
+        points = _u64(data, end + 1)
+        pos = end + 9 + 24 * points
+        if pos > len(data):
+            raise ValueError("cut short")
+    return pos

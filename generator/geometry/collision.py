@@ -7,10 +7,26 @@ import numpy as np
 from .raycast import SceneGeometry
 
 
+MAX_COORDINATE = 1e9  # metres; positions farther from the origin are refused
+_MAX_SAMPLES = 100_000  # first pass of a sweep; the bisection below keeps the test exact
+_LONG = 1000.0  # metres: longer moves are first clipped to the scene's bounds
+
+
+def checked_position(position, name: str = "position") -> np.ndarray:
+    """(3,) float64; ValueError for anything but three finite numbers within MAX_COORDINATE."""
+    try:
+        p = np.asarray(position, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be three numbers (x, y, z) in metres, got {position!r}") from None
+    if not np.isfinite(p).all() or np.abs(p).max() > MAX_COORDINATE:
+        raise ValueError(f"{name} must be finite metres within {MAX_COORDINATE:.0e} of the origin, got {p.tolist()}")
+    return p
+
+
 def position_is_free(geometry: SceneGeometry, position: np.ndarray, radius: float) -> bool:
     """True if a sphere of ``radius`` metres at ``position`` touches no triangle and is not
-    inside a solid (closed) part."""
-    p = np.asarray(position, dtype=np.float64).reshape(1, 3)
+    inside a solid (closed) part. A non-finite position raises ValueError."""
+    p = checked_position(position).reshape(1, 3)
     if geometry.distance(p)[0] < radius:
         return False
     return not bool(geometry.inside_solid(p)[0])
@@ -27,13 +43,22 @@ def segment_is_free(
     (d_a + d_b - L) / 2; intervals where that bound falls below ``radius`` are bisected
     until they are shorter than ``tolerance``.
     """
-    a = np.asarray(start, dtype=np.float64)
-    b = np.asarray(end, dtype=np.float64)
+    a, b = checked_position(start, "start"), checked_position(end, "end")
     length = float(np.linalg.norm(b - a))
-    if length > 0 and geometry.segments_blocked(a, b[None])[0]:
+    t0, t1 = 0.0, 1.0
+    if length > _LONG:
+        # far from every part's bounds (grown by the radius) the sphere touches nothing: test
+        # only the stretch of the segment inside them, so the work (and the float32 precision
+        # of the ray test) is bounded by the scene's size, not by the length of the move
+        window = _clip_to_box(a, b, geometry.world_bounds(), radius + tolerance)
+        if window is None:
+            return not bool(geometry.inside_solid(b[None])[0])
+        t0, t1 = window
+    p0, p1 = a + t0 * (b - a), a + t1 * (b - a)
+    if length > 0 and np.any(p1 != p0) and geometry.segments_blocked(p0, p1[None])[0]:
         return False
-    n = max(2, int(np.ceil(length / max(radius, 1e-6))) + 1)
-    t = np.linspace(0.0, 1.0, n)
+    n = min(_MAX_SAMPLES, max(2, int(np.ceil((t1 - t0) * length / max(radius, 1e-6))) + 1))
+    t = np.linspace(t0, t1, n)
     d = geometry.distance(a + t[:, None] * (b - a))
     if np.any(d < radius):
         return False
@@ -56,3 +81,21 @@ def segment_is_free(
             np.concatenate([mid_d, hi_d]),
         )
     return not bool(geometry.inside_solid(b[None])[0])
+
+
+def _clip_to_box(a: np.ndarray, b: np.ndarray, bounds: np.ndarray, margin: float) -> tuple[float, float] | None:
+    """Parameter range [t0, t1] of the segment a + t (b - a), t in [0, 1], inside the box
+    around all ``bounds`` (P, 2, 3) grown by ``margin``; None if it misses the box."""
+    if not len(bounds):
+        return None
+    lo, hi = bounds[:, 0].min(axis=0) - margin, bounds[:, 1].max(axis=0) + margin
+    d = b - a
+    t0, t1 = 0.0, 1.0
+    for k in range(3):
+        if d[k] == 0:
+            if not lo[k] <= a[k] <= hi[k]:
+                return None
+            continue
+        u, v = sorted(((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]))
+        t0, t1 = max(t0, u), min(t1, v)
+    return (t0, t1) if t0 <= t1 else None
