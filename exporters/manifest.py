@@ -1,13 +1,26 @@
 """``manifest.json``: what a finished seed folder holds (written last, so its presence means
-the folder is complete). Lists every file with its size in bytes and sha256."""
+the folder is complete). Lists every file with its size in bytes, its sha256 and its
+modification time (``mtime_ns``, used to decide which files a quick check re-hashes).
+
+One schema, one writer (:func:`write_manifest`), one reader (:func:`load_manifest`, which
+raises :class:`ManifestError`; :func:`read_manifest` returns None instead) and one checker
+(:func:`check_files`)."""
 
 from __future__ import annotations
 
 import hashlib
 import json
-from pathlib import Path
+import os
+from pathlib import Path, PurePosixPath
 
 MANIFEST = "manifest.json"
+PARTIAL_MARKER = ".buildee-partial"  # written first into a folder being generated; never listed
+REQUIRED = ("format_version", "seed", "config", "files")
+MAX_MANIFEST_BYTES = 256 << 20  # a manifest of 10,000 frames x 3 kinds is about 20 MB
+
+
+class ManifestError(ValueError):
+    """A manifest that is missing, unreadable or not of our schema (the message names the file)."""
 
 
 def sha256(path: Path, chunk: int = 1 << 20) -> str:
@@ -18,40 +31,106 @@ def sha256(path: Path, chunk: int = 1 << 20) -> str:
     return h.hexdigest()
 
 
+def _listed_files(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*")
+                  if p.is_file() and not p.is_symlink() and p.name not in (MANIFEST, PARTIAL_MARKER))
+
+
 def write_manifest(folder: str | Path, info: dict) -> Path:
-    """Write ``manifest.json`` = ``info`` + ``files``: {relative path: {bytes, sha256}}."""
+    """Write ``manifest.json`` = ``info`` + ``files``: {relative path: {bytes, sha256, mtime_ns}},
+    atomically (a temporary file renamed into place), so a manifest is whole or absent."""
     folder = Path(folder)
     files = {}
-    for p in sorted(folder.rglob("*")):
-        if p.is_file() and p.name != MANIFEST:
-            files[p.relative_to(folder).as_posix()] = {"bytes": p.stat().st_size, "sha256": sha256(p)}
+    for p in _listed_files(folder):
+        st = p.stat()
+        files[p.relative_to(folder).as_posix()] = {"bytes": st.st_size, "sha256": sha256(p), "mtime_ns": st.st_mtime_ns}
     path = folder / MANIFEST
-    path.write_text(json.dumps(info | {"files": files}, indent=1, sort_keys=True))
+    tmp = folder / f".{MANIFEST}.tmp"
+    with open(tmp, "w") as f:
+        f.write(json.dumps(info | {"files": files}, indent=1, sort_keys=True))
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
     return path
 
 
-def read_manifest(folder: str | Path) -> dict | None:
-    """The folder's manifest, or None if it has none (an unfinished folder)."""
+def _schema_problem(manifest) -> str | None:
+    if not isinstance(manifest, dict):
+        return f"holds a JSON {type(manifest).__name__}, not an object"
+    missing = [k for k in REQUIRED if k not in manifest]
+    if missing:
+        return f"lacks {', '.join(missing)}"
+    seed = manifest["seed"]
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        return f"has seed {seed!r}, not a non-negative integer"
+    if not isinstance(manifest["config"], dict):
+        return "has a config that is not an object"
+    files = manifest["files"]
+    if not isinstance(files, dict):
+        return "has a file list that is not an object"
+    for rel, meta in files.items():
+        p = PurePosixPath(rel)
+        if p.is_absolute() or ".." in p.parts or not rel:
+            return f"lists a path outside its folder: {rel!r}"
+        if not (isinstance(meta, dict) and isinstance(meta.get("bytes"), int) and isinstance(meta.get("sha256"), str)):
+            return f"has no size and sha256 for {rel!r}"
+    return None
+
+
+def load_manifest(folder: str | Path) -> dict:
+    """The folder's manifest; raises ManifestError saying what is wrong with it."""
     path = Path(folder) / MANIFEST
-    if not path.is_file():
-        return None
+    if path.is_symlink() or not path.is_file():
+        raise ManifestError(f"{path}: missing (the folder is not a complete seed)")
+    if path.stat().st_size > MAX_MANIFEST_BYTES:
+        raise ManifestError(f"{path}: {path.stat().st_size} bytes, too large to be a manifest")
     try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError:
+        manifest = json.loads(path.read_bytes())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ManifestError(f"{path}: unreadable ({exc.__class__.__name__})") from None
+    problem = _schema_problem(manifest)
+    if problem:
+        raise ManifestError(f"{path}: {problem}")
+    return manifest
+
+
+def read_manifest(folder: str | Path) -> dict | None:
+    """The folder's manifest, or None if it has none or it is not a valid manifest."""
+    try:
+        return load_manifest(folder)
+    except ManifestError:
         return None
 
 
-def verify_manifest(folder: str | Path) -> list[str]:
-    """Problems found (missing files, wrong sizes or hashes); empty if the folder is intact."""
+def check_files(folder: str | Path, manifest: dict, hashes: bool | None = True) -> list[str]:
+    """One line per file that differs from ``manifest``: missing, other size, other sha256,
+    and files the manifest does not list. ``hashes``: True hashes every file; False checks
+    sizes only; None hashes the files whose modification time differs from the manifest's
+    (a file written after the manifest, or copied without its times)."""
     folder = Path(folder)
-    manifest = read_manifest(folder)
-    if manifest is None:
-        return [f"{folder}: no readable {MANIFEST}"]
     problems = []
-    for rel, meta in manifest.get("files", {}).items():
+    listed = manifest["files"]
+    for rel, meta in listed.items():
         p = folder / rel
-        if not p.is_file():
-            problems.append(f"missing: {rel}")
-        elif p.stat().st_size != meta["bytes"] or sha256(p) != meta["sha256"]:
-            problems.append(f"changed: {rel}")
+        if p.is_symlink() or not p.is_file():
+            problems.append(f"{rel}: missing")
+            continue
+        st = p.stat()
+        if st.st_size != meta["bytes"]:
+            problems.append(f"{rel}: {st.st_size} bytes, the manifest says {meta['bytes']}")
+        elif (hashes or (hashes is None and st.st_mtime_ns != meta.get("mtime_ns"))) and sha256(p) != meta["sha256"]:
+            problems.append(f"{rel}: contents changed (sha256 differs from the manifest)")
+    for p in _listed_files(folder):
+        if p.relative_to(folder).as_posix() not in listed:
+            problems.append(f"{p.relative_to(folder).as_posix()}: not listed in the manifest")
     return problems
+
+
+def verify_manifest(folder: str | Path, hashes: bool = True) -> list[str]:
+    """Problems found (a bad manifest, missing files, wrong sizes or hashes, unlisted files);
+    empty if the folder is intact."""
+    try:
+        manifest = load_manifest(folder)
+    except ManifestError as exc:
+        return [str(exc)]
+    return check_files(folder, manifest, hashes)

@@ -1,4 +1,5 @@
-"""``python -m generator --seeds 0 137 281``: build, fly and render one site per seed.
+"""``python -m generator --seeds 0 137 281``: build, fly and render one site per seed;
+``python -m generator verify DIR``: check seed folders against their manifests.
 
 The main process never imports bpy; every seed runs in its own worker process.
 """
@@ -12,8 +13,9 @@ from pathlib import Path
 
 from trajectories import KINDS
 
-from .batch.config import RunConfig
+from .batch.config import MAX_FRAMES, MAX_SEED, RunConfig
 from .cli_args import OneLineParser, int_at_least, positive_float, resolution
+from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
 
@@ -35,18 +37,27 @@ def parse_args(argv=None) -> argparse.Namespace:
         prog="python -m generator",
         description="Build one procedural construction site per seed, fly camera trajectories through it and "
                     "write, per frame, RGB/depth/labels/instances (EXR), RGB (PNG), plus each trajectory, its "
-                    "coverage and a manifest. Finished seeds are skipped on rerun.")
-    p.add_argument("--seeds", type=int_at_least(0, "seed"), nargs="+", default=[0, 137, 281],
-                   help="scene seeds, non-negative integers (default: 0 137 281)")
+                    "coverage and a manifest. Finished seeds are checked and skipped on rerun. Nothing in --out "
+                    "that this run did not create is deleted or replaced unless --overwrite (or --repair) says so. "
+                    "Exit codes: 0 every seed complete; 1 a seed failed; 2 bad input; 3 a seed was left alone "
+                    "(its folder holds something else, a seed made with other parameters, or a corrupt seed); "
+                    "4 a seed was skipped because another run is writing it. "
+                    "'python -m generator verify DIR' checks a dataset (see its --help).")
+    p.add_argument("--seeds", type=int_at_least(0, "seed", MAX_SEED), nargs="+", default=[0, 137, 281],
+                   help="scene seeds, integers from 0 to 2**63-1 (default: 0 137 281)")
     p.add_argument("--out", type=Path, default=Path("output"), help="output folder (default: ./output)")
     p.add_argument("--scene-preset", choices=sorted(SCENE_PRESETS), default=DEFAULTS.scene_preset,
                    help=f"site size and content (default: {DEFAULTS.scene_preset})")
     p.add_argument("--render-preset", choices=list(RENDER_PRESETS), default=DEFAULTS.render_preset,
                    help=f"render quality (default: {DEFAULTS.render_preset}: Cycles, 4 samples, denoised)")
+    p.add_argument("--device", choices=DEVICES, default=DEFAULTS.device,
+                   help="Cycles device: cpu, gpu (a CUDA/OptiX GPU; an error without one) or auto (a GPU when "
+                        f"there is one, else the CPU; default: {DEFAULTS.device})")
     p.add_argument("--resolution", type=resolution, default=DEFAULTS.resolution,
-                   help="image size WxH in pixels (default: 640x480)")
-    p.add_argument("--frames", type=int_at_least(2, "frames"), default=DEFAULTS.frames,
-                   help=f"frames per trajectory, at 10 frames per second of scene time (default: {DEFAULTS.frames})")
+                   help="image size WxH in pixels, sides 4 to 16384, at most 7680x4320 pixels (default: 640x480)")
+    p.add_argument("--frames", type=int_at_least(2, "frames", MAX_FRAMES), default=DEFAULTS.frames,
+                   help=f"frames per trajectory, 2 to {MAX_FRAMES}, at 10 frames per second of scene time "
+                        f"(default: {DEFAULTS.frames})")
     p.add_argument("--trajectory", choices=KINDS, action="append", dest="trajectories",
                    help="trajectory kind, repeatable (default: orbit and spline)")
     p.add_argument("--points-density", type=positive_float(), default=DEFAULTS.points_density,
@@ -58,18 +69,37 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
     p.add_argument("--shard", type=_shard, default=(0, 1),
                    help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
-    p.add_argument("--overwrite", action="store_true", help="redo seeds that are already complete")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace seeds that are already complete (the old folder stays until the new one is complete)")
+    p.add_argument("--verify", action="store_true",
+                   help="hash every file of complete seeds before skipping them (default: check sizes, and hash "
+                        "files whose modification time changed)")
+    p.add_argument("--repair", action="store_true", help="redo complete seeds whose files fail the check")
+    p.add_argument("--wait", action="store_true",
+                   help="wait for seeds another run is writing (default: skip them, exit code 4)")
     args = p.parse_args(argv)
     if len(set(args.seeds)) != len(args.seeds):
         p.error("--seeds lists a seed twice")
+    args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
+                            tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
+                            DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device)
+    try:
+        args.config.validated()
+    except ValueError as exc:
+        p.error(str(exc))
+    if args.device == "gpu" and probe_gpu() is None:
+        p.error(NO_GPU_MESSAGE)
     return args
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["verify"]:
+        from .batch.verify import main as verify
+
+        return verify(argv[1:])
     args = parse_args(argv)
-    cfg = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
-                    tuple(args.trajectories or DEFAULTS.trajectories), args.points_density, DEFAULTS.max_depth,
-                    args.scoring_density, args.colmap_text)
+    cfg = args.config
     try:
         args.out.mkdir(parents=True, exist_ok=True)
         probe = args.out / f".write-test-{os.getpid()}"
@@ -78,30 +108,26 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
-    from .batch.runner import plan_seeds, run_seeds
+    from .batch.runner import Options, exit_code, run_seeds
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
-    todo, skipped, notes = plan_seeds(args.out, seeds, cfg, args.overwrite)
-    for line in notes:
-        print(line)
-    for r in skipped:
-        print(f"seed {r.seed}: already complete, skipped")
+    opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers)
     try:
-        results = run_seeds(args.out, todo, cfg, args.workers) if todo else []
+        results = run_seeds(args.out, seeds, cfg, opts)
     except KeyboardInterrupt:
         print("interrupted: unfinished seeds were removed; rerun the same command to finish them", file=sys.stderr)
         return 130
-    results = sorted(skipped + results, key=lambda r: seeds.index(r.seed))
+    results = sorted(results, key=lambda r: seeds.index(r.seed))
     print(f"\n{'seed':>8}  {'status':<8} {'frames':>6} {'points':>10} {'visible tracks':>15} {'time':>7}")
     for r in results:
         s = r.summary
         print(f"{r.seed:>8}  {r.status:<8} {s.get('frames', '-'):>6} {s.get('points', 0):>10,} "
-              f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.status == "failed" else ""))
+              f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.status != "done" else ""))
     failed = [r for r in results if r.status == "failed"]
     if failed:
         print(f"{len(failed)} seed(s) failed; their partial output is in {args.out}/.seed_*.partial", file=sys.stderr)
-    return 1 if failed else 0
+    return exit_code(results)
 
 
 if __name__ == "__main__":

@@ -16,16 +16,17 @@ class OneLineParser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def int_at_least(minimum: int, what: str):
-    """An argparse type: an integer >= ``minimum``."""
+def int_at_least(minimum: int, what: str, maximum: int | None = None):
+    """An argparse type: an integer >= ``minimum`` (and <= ``maximum`` when given)."""
+    bound = f">= {minimum}" if maximum is None else f"from {minimum} to {maximum}"
 
     def parse(text: str) -> int:
         try:
-            value = int(text)
+            value = int(text) if len(text) < 100 else None
         except ValueError:
             value = None
-        if value is None or value < minimum:
-            raise argparse.ArgumentTypeError(f"{what} must be an integer >= {minimum}, got {text!r}")
+        if value is None or value < minimum or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"{what} must be an integer {bound}, got {text[:40]!r}")
         return value
 
     return parse

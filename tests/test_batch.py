@@ -118,7 +118,7 @@ def test_rerun_skips_finished_seeds(finished):
     out, _ = finished
     before = (out / "seed_000004" / "manifest.json").stat().st_mtime_ns
     r = run(out, "--seeds", "4", "--colmap-text")
-    assert r.returncode == 0 and "seed 4: already complete, skipped" in r.stdout
+    assert r.returncode == 0 and "seed 4: already complete (sizes checked), skipped" in r.stdout
     assert (out / "seed_000004" / "manifest.json").stat().st_mtime_ns == before
 
 
@@ -145,7 +145,7 @@ def test_failed_seed_is_reported_and_others_finish(tmp_path):
     assert read_manifest(tmp_path / "seed_000006") is not None
     assert not (tmp_path / "seed_000005").exists()  # never marked complete
     r2 = run(tmp_path, "--seeds", "5", "6", "--shard", "1/2")  # the shard holds only seed 6
-    assert r2.returncode == 0 and "seed 6: already complete, skipped" in r2.stdout and "seed 5" not in r2.stdout
+    assert r2.returncode == 0 and "seed 6: already complete" in r2.stdout and "seed 5" not in r2.stdout
 
 
 def test_killed_run_resumes(tmp_path):
@@ -167,16 +167,27 @@ def test_killed_run_resumes(tmp_path):
     assert (tmp_path / ".seed_000009.partial").exists() and not (tmp_path / "seed_000009").exists()
     r = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert "seed 8: already complete, skipped" in r.stdout
+    assert "seed 8: already complete" in r.stdout
     assert "seed 9: unfinished output from an earlier run removed; redoing it" in r.stdout
-    assert verify_manifest(tmp_path / "seed_000009") == [] and not (tmp_path / ".seed_000009.partial").exists()
+    assert verify_manifest(tmp_path / "seed_000009") == []
+    assert not list(tmp_path.glob(".seed_*"))  # partial folder and lock files gone
 
 
 @pytest.mark.parametrize(
     "args,message",
     [
-        (["--seeds", "-3"], "seed must be an integer >= 0"),
-        (["--seeds", "1.5"], "seed must be an integer >= 0"),
+        (["--seeds", "-3"], "seed must be an integer from 0 to 9223372036854775807"),
+        (["--seeds", "1.5"], "seed must be an integer from 0"),
+        (["--seeds", str(2**64)], "seed must be an integer from 0 to 9223372036854775807"),
+        (["--seeds", "9" * 5000], "seed must be an integer from 0"),
+        (["--resolution", "3x2"], "each side must be 4 to 16384 pixels"),
+        (["--resolution", "70000x4"], "each side must be 4 to 16384 pixels"),
+        (["--resolution", "100000x100000"], "each side must be 4 to 16384 pixels"),
+        (["--resolution", "16384x16384"], "the limit is 33,177,600"),
+        (["--frames", "100000"], "frames must be an integer from 2 to 10000"),
+        (["--scoring-density", "1e7"], "--scoring-density 1e+07: a small site has more than 2,500 m^2"),
+        (["--points-density", "1e5"], "--points-density 100000: a small site"),
+        (["--scoring-density", "nan"], "expected a positive number"),
         (["--scene-preset", "huge"], "invalid choice"),
         (["--render-preset", "ultra"], "invalid choice"),
         (["--trajectory", "zigzag"], "invalid choice"),
@@ -199,17 +210,20 @@ def test_unwritable_output_folder(tmp_path):
     assert r.returncode == 2 and r.stderr.startswith("error: cannot write to output folder") and "Traceback" not in r.stderr
 
 
-def test_seed_folders_of_an_older_format_are_redone(tmp_path):
+def test_seed_folders_of_an_older_format_are_left_alone(tmp_path):
+    """A complete seed of another format version is the user's data: reported, not replaced
+    (--overwrite replaces it)."""
     from exporters import FORMAT_VERSION
     from exporters.manifest import write_manifest
     from generator.batch.config import RunConfig
-    from generator.batch.runner import plan_seeds
+    from generator.batch.folders import decide
 
-    cfg = RunConfig()
+    cfg = RunConfig().to_dict()
     for seed, version in ((1, "0.2"), (2, FORMAT_VERSION)):
         (tmp_path / f"seed_{seed:06d}").mkdir()
-        write_manifest(tmp_path / f"seed_{seed:06d}", {"format_version": version, "config": cfg.to_dict(), "summary": {}})
-    todo, skipped, notes = plan_seeds(tmp_path, [1, 2], cfg, overwrite=False)
-    assert todo == [1] and [r.seed for r in skipped] == [2]
-    assert notes == [f"seed 1: existing folder replaced (format 0.2, now {FORMAT_VERSION})"]
-    assert not (tmp_path / "seed_000001").exists()
+        write_manifest(tmp_path / f"seed_{seed:06d}", {"format_version": version, "seed": seed, "config": cfg, "summary": {}})
+    old = decide(tmp_path, 1, cfg, overwrite=False, repair=False, hashes=None)
+    assert old.action == "conflict" and f"format_version '0.2' (now '{FORMAT_VERSION}')" in old.message
+    assert decide(tmp_path, 2, cfg, overwrite=False, repair=False, hashes=None).action == "skip"
+    assert decide(tmp_path, 1, cfg, overwrite=True, repair=False, hashes=None).action == "run"
+    assert read_manifest(tmp_path / "seed_000001")["format_version"] == "0.2"  # deciding touches nothing

@@ -8,6 +8,15 @@ import numpy as np
 
 from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
+# Bounds on what a run accepts, checked before any work (docs/guarantees.md).
+MIN_SIDE = 4  # Blender renders sides below 4 pixels as 4 (measured: 3x2 gives a 4x4 image)
+MAX_SIDE = 16384  # Blender clamps above 65536; we stop well before memory does
+MAX_PIXELS = 7680 * 4320  # 33.2 million pixels per frame (8K UHD)
+MAX_FRAMES = 10_000  # per trajectory; the site's animation set-up grows faster than linearly past this
+MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
+MAX_SCORING_POINTS = 50_000_000  # ground-truth cloud: ~57 bytes a point in memory, several copies at peak
+MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every frame
+
 
 @dataclass(frozen=True)
 class RunConfig:
@@ -15,7 +24,8 @@ class RunConfig:
     frames: frames per trajectory (scene animation at 10 fps); trajectories: kinds to fly;
     points_density: surface points per square metre; max_depth: visibility limit in metres
     (planar depth); scoring_density: points per square metre of the ground-truth cloud
-    (ground_truth/points.ply); colmap_text: also write the COLMAP model as text."""
+    (ground_truth/points.ply); colmap_text: also write the COLMAP model as text; device: Cycles
+    device, 'cpu', 'gpu' or 'auto' (the manifest's summary names the one used)."""
 
     scene_preset: str = "medium"
     render_preset: str = "preview"
@@ -26,6 +36,25 @@ class RunConfig:
     max_depth: float = 60.0
     scoring_density: float = 100.0
     colmap_text: bool = False
+    device: str = "auto"
+
+    def validated(self) -> "RunConfig":
+        """Self, or ValueError naming the first value outside what a run can honour."""
+        w, h = self.resolution
+        if not (MIN_SIDE <= w <= MAX_SIDE and MIN_SIDE <= h <= MAX_SIDE):
+            raise ValueError(f"resolution {w}x{h}: each side must be {MIN_SIDE} to {MAX_SIDE} pixels "
+                             f"(Blender renders smaller sides as {MIN_SIDE})")
+        if w * h > MAX_PIXELS:
+            raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (7680x4320)")
+        if not 2 <= self.frames <= MAX_FRAMES:
+            raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
+        area = site_area_lower_bound(self.scene_preset)
+        for name, density, limit in (("points-density", self.points_density, MAX_SURFACE_POINTS),
+                                     ("scoring-density", self.scoring_density, MAX_SCORING_POINTS)):
+            if density * area > limit:
+                raise ValueError(f"--{name} {density:g}: a {self.scene_preset} site has more than {area:,.0f} m^2 of "
+                                 f"surface, so over {density * area:,.0f} points; the limit is {limit:,}")
+        return self
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -35,6 +64,24 @@ class RunConfig:
     @classmethod
     def from_dict(cls, d: dict) -> "RunConfig":
         return cls(**(d | {"resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"])}))
+
+
+def site_area_lower_bound(preset: str) -> float:
+    """Square metres of surface a site of ``preset`` has at least (its ground alone)."""
+    from ..scene.site import PRESETS
+
+    return PRESETS[preset].size ** 2
+
+
+def check_point_budget(cfg: RunConfig, surface_points: int) -> None:
+    """After the site is built, before rendering: ValueError if ``cfg.scoring_density`` would
+    make a ground-truth cloud over MAX_SCORING_POINTS. The site's surface area is estimated
+    from its simulator points (``surface_points`` at ``cfg.points_density`` per m^2)."""
+    area = surface_points / cfg.points_density
+    estimate = cfg.scoring_density * area
+    if estimate > MAX_SCORING_POINTS:
+        raise ValueError(f"--scoring-density {cfg.scoring_density:g} on this site (about {area:,.0f} m^2 of surface) "
+                         f"gives about {estimate:,.0f} points; the limit is {MAX_SCORING_POINTS:,}: lower it")
 
 
 def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndarray, seed: int, frames: int, fps: float):

@@ -1,5 +1,6 @@
-"""Run seeds in worker processes: skip finished ones, redo unfinished ones, never mark a
-partial folder complete. bpy-free (workers import it)."""
+"""Run seeds in worker processes, one writer per seed: each seed is locked, checked against
+what the output folder holds (generation.folders.decide), written into a marked partial
+folder by its worker and committed atomically. bpy-free (workers import it)."""
 
 from __future__ import annotations
 
@@ -16,142 +17,189 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from exporters import FORMAT_VERSION
-from exporters.manifest import read_manifest
-
+from . import folders
 from .config import RunConfig
 
-
-def seed_folder(out: Path, seed: int) -> Path:
-    return out / f"seed_{seed:06d}"
-
-
-def partial_folder(out: Path, seed: int) -> Path:
-    return out / f".seed_{seed:06d}.partial"
+# exit codes of python -m generator (docs/guarantees.md); the most severe applies
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_LEFT_ALONE, EXIT_BUSY = 0, 1, 2, 3, 4
+_EXIT_OF = {"done": EXIT_OK, "skipped": EXIT_OK, "failed": EXIT_FAILED, "conflict": EXIT_LEFT_ALONE,
+            "corrupt": EXIT_LEFT_ALONE, "busy": EXIT_BUSY}
 
 
 @dataclass
 class SeedResult:
     seed: int
-    status: str  # done, skipped, failed
+    status: str  # done, skipped, failed, conflict, corrupt, busy
     message: str = ""
     summary: dict = field(default_factory=dict)
     seconds: float = 0.0
 
 
-def plan_seeds(out: Path, seeds: list[int], cfg: RunConfig, overwrite: bool) -> tuple[list[int], list[SeedResult], list[str]]:
-    """(seeds to run, skipped results, messages) and remove what must be redone."""
-    todo, skipped, notes = [], [], []
-    for seed in seeds:
-        final, partial = seed_folder(out, seed), partial_folder(out, seed)
-        if partial.exists():
-            shutil.rmtree(partial)
-            notes.append(f"seed {seed}: unfinished output from an earlier run removed; redoing it")
-        manifest = read_manifest(final) if final.exists() else None
-        current = manifest is not None and manifest.get("format_version") == FORMAT_VERSION
-        if current and not overwrite and manifest.get("config") == cfg.to_dict():
-            skipped.append(SeedResult(seed, "skipped", "already complete", manifest.get("summary", {})))
-            continue
-        if final.exists():
-            reason = ("no manifest (incomplete)" if manifest is None else "--overwrite" if overwrite else
-                      f"format {manifest.get('format_version')}, now {FORMAT_VERSION}" if not current else
-                      "different parameters")
-            notes.append(f"seed {seed}: existing folder replaced ({reason})")
-            shutil.rmtree(final)
-        todo.append(seed)
-    return todo, skipped, notes
+@dataclass(frozen=True)
+class Options:
+    """overwrite: replace complete seeds; repair: redo complete seeds whose files fail the
+    check; hashes: True hashes every file of a complete seed, None only files whose time
+    changed; wait: wait for seeds another run is writing instead of skipping them."""
+
+    overwrite: bool = False
+    repair: bool = False
+    hashes: bool | None = None
+    wait: bool = False
+    workers: int = 1
+
+
+def exit_code(results: list[SeedResult]) -> int:
+    codes = {_EXIT_OF[r.status] for r in results}
+    return next((c for c in (EXIT_FAILED, EXIT_LEFT_ALONE, EXIT_BUSY) if c in codes), EXIT_OK)
 
 
 class _Worker:
-    def __init__(self, seed: int, out: Path, cfg: RunConfig, position: int, lock):
-        self.seed, self.out, self.lock, self.position = seed, out, lock, position
-        self.folder = partial_folder(out, seed)
+    """One seed's worker process; it shares the seed's lock descriptor with the runner."""
+
+    def __init__(self, seed: int, out: Path, cfg: RunConfig, position: int, lock: folders.SeedLock,
+                 replace: bool, bar_lock):
+        self.seed, self.out, self.cfg, self.lock, self.replace, self.bar_lock = seed, out, cfg, lock, replace, bar_lock
+        self.folder, self.note = folders.start_partial(out, seed)
+        self.position = position
         env = {k: v for k, v in os.environ.items() if k != "OCIO"}
         self.start_time = time.perf_counter()
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "generator.batch.worker", json.dumps(cfg.to_dict()), str(seed), str(self.folder)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True,
-            cwd=Path(__file__).resolve().parents[2])
+            cwd=Path(__file__).resolve().parents[2], pass_fds=(lock.fd,))
         self.bar = tqdm(total=cfg.frames * len(cfg.trajectories), desc=f"seed {seed} frames", unit="frame",
                         position=position, leave=False, dynamic_ncols=True)
         self.events: list[dict] = []
         self.stderr = ""
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-        self.err_reader = threading.Thread(target=self._read_err, daemon=True)
-        self.err_reader.start()
+        self.readers = [threading.Thread(target=self._read, daemon=True), threading.Thread(target=self._read_err, daemon=True)]
+        for t in self.readers:
+            t.start()
 
     def _read(self):
         for line in self.proc.stdout:
-            if not line.startswith("@@"):
-                continue
-            event = json.loads(line[2:])
-            self.events.append(event)
-            if event["event"] == "frame":
-                with self.lock:
-                    self.bar.update(1)
+            if line.startswith("@@"):
+                event = json.loads(line[2:])
+                self.events.append(event)
+                if event["event"] == "frame":
+                    with self.bar_lock:
+                        self.bar.update(1)
 
     def _read_err(self):
         self.stderr = self.proc.stderr.read()
 
     def finish(self) -> SeedResult:
-        self.reader.join()
-        self.err_reader.join()
+        """Commit the seed if its worker succeeded, then release its lock."""
+        for t in self.readers:
+            t.join()
         self.bar.close()
         seconds = time.perf_counter() - self.start_time
         done = [e for e in self.events if e["event"] == "done"]
-        if self.proc.returncode == 0 and done and read_manifest(self.folder) is not None:
-            final = seed_folder(self.out, self.seed)
-            os.replace(self.folder, final)  # atomic: the folder appears complete or not at all
-            return SeedResult(self.seed, "done", "", done[0]["summary"], seconds)
+        try:
+            if self.proc.returncode == 0 and done:
+                problem = folders.commit(self.out, self.seed, self.cfg.to_dict(), self.replace)
+                if not problem:
+                    return SeedResult(self.seed, "done", "", done[0]["summary"], seconds)
+                return SeedResult(self.seed, "failed", f"not committed: {problem}", {}, seconds)
+            return SeedResult(self.seed, "failed", self._cause(), {}, seconds)
+        finally:
+            self.lock.release()
+
+    def _cause(self) -> str:
         errors = [e["message"] for e in self.events if e["event"] == "error"]
         cause = errors[0] if errors else (self.stderr.strip().splitlines() or [f"exit code {self.proc.returncode}"])[-1]
         log = self.folder / "error.log"
-        where = f" (details: {log})" if log.exists() else ""
-        return SeedResult(self.seed, "failed", cause + where, {}, seconds)
+        return cause + (f" (details: {log})" if log.exists() else "")
 
-    def kill(self):
+    def abandon(self):
+        """Interrupted: kill the worker, remove its partial folder (made by this run), unlock."""
         try:
             os.killpg(self.proc.pid, signal.SIGTERM)
         except ProcessLookupError:
             pass
+        self.proc.wait()
+        shutil.rmtree(self.folder, ignore_errors=True)
+        self.lock.release()
 
 
-def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, workers: int) -> list[SeedResult]:
-    """Run ``seeds`` with up to ``workers`` processes at once; returns their results."""
-    lock = threading.Lock()
+def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders.SeedLock | None, SeedResult | None, folders.Decision | None]:
+    """(lock, None, decision) when ``seed`` is to be generated; (None, result, None) when it
+    is settled without work; (None, None, None) while another run holds it and we wait."""
+    try:
+        lock = folders.SeedLock.try_acquire(out, seed)
+    except OSError as exc:
+        return None, SeedResult(seed, "conflict", f"lock file {folders.lock_file(out, seed)}: {exc.strerror}; move it away"), None
+    if lock is None:
+        if opts.wait:
+            return None, None, None
+        pid = folders.lock_holder(out, seed)
+        return None, SeedResult(seed, "busy", f"being written by another run{f' (pid {pid})' if pid else ''}; "
+                                              "skipped: rerun later, or add --wait"), None
+    d = folders.decide(out, seed, cfg.to_dict(), opts.overwrite, opts.repair, True if opts.hashes else None)
+    if d.action == "run":
+        return lock, None, d
+    lock.release()
+    return None, SeedResult(seed, "skipped" if d.action == "skip" else d.action, d.message, d.summary or {}), None
+
+
+def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> list[SeedResult]:
+    """Run ``seeds`` with up to ``opts.workers`` processes at once; returns their results."""
+    bar_lock = threading.Lock()
     results: list[SeedResult] = []
     pending = list(seeds)
     running: list[_Worker] = []
     overall = tqdm(total=len(seeds), desc="seeds", unit="seed", position=0, dynamic_ncols=True)
+
+    def report(r: SeedResult):
+        results.append(r)
+        overall.update(1)
+        tqdm.write(one_line(r))
+
     try:
         while pending or running:
-            while pending and len(running) < workers:
-                used = {w.position for w in running}
-                position = min(p for p in range(1, workers + 2) if p not in used)
-                running.append(_Worker(pending.pop(0), out, cfg, position, lock))
+            waiting = []
+            while pending and len(running) < opts.workers:
+                seed = pending.pop(0)
+                lock, settled, decision = _claim(out, seed, cfg, opts)
+                if settled:
+                    report(settled)
+                elif lock is None:
+                    waiting.append(seed)
+                elif w := _start(seed, out, cfg, lock, decision, running, bar_lock, report):
+                    running.append(w)
+            pending = waiting + pending
             time.sleep(0.2)
             for w in [w for w in running if w.proc.poll() is not None]:
                 running.remove(w)
-                r = w.finish()
-                results.append(r)
-                overall.update(1)
-                tqdm.write(_one_line(r))
+                report(w.finish())
     except KeyboardInterrupt:
         for w in running:
-            w.kill()
-        for w in running:
-            w.proc.wait()
-            shutil.rmtree(w.folder, ignore_errors=True)
+            w.abandon()
         overall.close()
         raise
     overall.close()
     return results
 
 
-def _one_line(r: SeedResult) -> str:
+def _start(seed, out, cfg, lock, decision, running, bar_lock, report) -> "_Worker | None":
+    """The seed's worker, started; or None (reported, unlocked) if its partial folder is taken."""
+    position = min(p for p in range(1, len(running) + 2) if p not in {w.position for w in running})
+    try:
+        w = _Worker(seed, out, cfg, position, lock, decision.replace, bar_lock)
+    except OSError as exc:
+        lock.release()
+        report(SeedResult(seed, "conflict", exc.strerror or str(exc)))
+        return None
+    for note in (w.note, decision.message):
+        if note:
+            tqdm.write(f"seed {seed}: {note}")
+    return w
+
+
+def one_line(r: SeedResult) -> str:
     if r.status == "failed":
         return f"seed {r.seed}: FAILED after {r.seconds:.0f} s: {r.message}"
+    if r.status != "done":
+        return f"seed {r.seed}: {r.message}"
     s = r.summary
     return (f"seed {r.seed}: {s.get('frames', 0)} frames, {s.get('points', 0):,} points, "
             f"{s.get('visible_tracks', 0):,} visible tracks, {r.seconds:.0f} s")

@@ -85,6 +85,7 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False) -
 
 
 def run(config: dict, seed: int, folder: Path) -> dict:
+    """Generate ``seed`` into ``folder`` (made and marked by the runner), manifest last."""
     from ..blender import session
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -96,20 +97,21 @@ def run(config: dict, seed: int, folder: Path) -> dict:
 
     from .. import Simulator
     from ..scene import build_site, plan_site, site_params
-    from .config import RunConfig, plan_trajectory
+    from .config import RunConfig, check_point_budget, plan_trajectory
 
-    cfg = RunConfig.from_dict(config)
+    cfg = RunConfig.from_dict(config).validated()
     t0 = time.perf_counter()
     site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames))
     sim = Simulator(site.blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
                     render_preset=cfg.render_preset)
-    sim.configure_render(resolution=cfg.resolution)
+    check_point_budget(cfg, sim.num_points)  # before any rendering
+    sim.configure_render(resolution=cfg.resolution, device=cfg.device)
     start = sim.respawn_camera()
     plan = plan_site(seed, site_params(cfg.scene_preset, frames=max(250, cfg.frames)))
     emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
     fps = 10.0
     tracks = 0
-    summary = {"trajectories": {}}
+    summary = {"trajectories": {}, "render_device": sim.render_device}
     for kind in cfg.trajectories:
         traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
         coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text)

@@ -2,26 +2,32 @@
 
 from __future__ import annotations
 
-import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
+from ..batch.config import MAX_FRAMES, MAX_SEED
+from ..cli_args import OneLineParser, int_at_least
 from .site import LAYOUTS, PRESETS
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m generator.scene", description="Build one procedural construction site and save it.")
-    p.add_argument("--seed", type=int, required=True, help="site seed (non-negative integer)")
+    p = OneLineParser(prog="python -m generator.scene", description="Build one procedural construction site and save it.")
+    p.add_argument("--seed", type=int_at_least(0, "seed", MAX_SEED), required=True,
+                   help="site seed, an integer from 0 to 2**63-1")
     p.add_argument("--preset", default="medium", choices=sorted(PRESETS), help="site preset (default: medium)")
     p.add_argument("--out", type=Path, default=Path("site"), help="output folder (default: ./site)")
     p.add_argument("--size", type=float, help="site side in metres (default: the preset's)")
     p.add_argument("--density", type=float, help="object density multiplier, 1 = typical (default: the preset's)")
     p.add_argument("--layout", choices=LAYOUTS, help="arrangement of the props (default: scattered)")
     p.add_argument("--phase", type=float, help="share of the planned floors built, 0 to 1 (default: random per building)")
-    p.add_argument("--frames", type=int, help="animation length in frames at 10 fps (default: 250)")
+    p.add_argument("--frames", type=int_at_least(2, "frames", MAX_FRAMES),
+                   help=f"animation length in frames at 10 fps, 2 to {MAX_FRAMES} (default: 250)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
+    if os.path.lexists(args.out) and not args.out.is_dir():
+        p.error(f"--out {args.out} exists and is not a folder; name a folder")
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}
     from . import build_site
 
@@ -30,6 +36,9 @@ def main(argv=None) -> int:
         result = build_site(args.seed, args.preset, args.out, preview=not args.no_preview, **overrides)
     except (ValueError, TypeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: cannot write to {args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     info = result.info
     print(f"seed {args.seed} ({args.preset}): {info['objects']} objects, {info['triangles']:,} triangles, "
