@@ -29,6 +29,22 @@ def test_voxel_map_centres_and_majority_labels():
     assert tie.points()[1].tolist() == [1]  # ties go to the smallest id
 
 
+def test_paper_voxel_rule_corners_and_first_label():
+    from generator.baselines.paper_voxels import FirstSeenVoxels
+
+    vm = FirstSeenVoxels(0.5)
+    # frame 1: three points in voxel (0, 0, 0), the first labelled 2 (the majority is 4)
+    vm.add(np.array([[0.1, 0.1, 0.1], [0.2, 0.4, 0.3], [0.3, 0.2, 0.1], [np.nan, 0, 0], [9.0, 9.0, 9.0]]),
+           np.array([2, 4, 4, 1, -1]))  # NaN and -1 are ignored
+    # frame 2: voxel (0, 0, 0) again (it keeps label 2) and a new voxel (-1, 0, 0)
+    vm.add(np.array([[0.45, 0.1, 0.2], [-0.1, 0.0, 0.0]]), np.array([5, 7]))
+    corners, labels = vm.points()
+    order = np.lexsort(corners.T[::-1])
+    np.testing.assert_allclose(corners[order], [[-0.5, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(labels[order], [7, 2])
+    assert len(vm) == 2
+
+
 def baselines(*args):
     return subprocess.run([sys.executable, "-m", "generator.baselines", *map(str, args)], capture_output=True,
                           text=True, cwd=ROOT)
@@ -144,6 +160,8 @@ def test_reconstruction_points_lie_on_the_scene(tmp_path):
     assert again.returncode == 0
     res2 = json.loads((tmp_path / "again" / "reconstruction.json").read_text())
     assert res2["scores"]["gt_density_20"]["metrics"] == res["scores"]["gt_density_20"]["metrics"]  # reproducible
+    assert res2["paper_voxel_rule"]["result"]["metrics"] == res["paper_voxel_rule"]["result"]["metrics"]
+    assert res["parameters"]["frames"] == 3 and res["paper_voxel_rule"]["predicted_points"] > 100
     m = res["scores"]["gt_density_20"]["metrics"]
     assert res["predicted_points"] > 100 and 0 < m["semantic"]["semantic_chamfer_pred_to_gt"] <= 1
     pred = read_ply(tmp_path / "prediction.ply")
