@@ -1,10 +1,10 @@
 """``python -m evaluation``: score point clouds and exploration trajectories offline.
 
-  python -m evaluation reconstruction --gt SEED_FOLDER|GT.ply --pred CLOUD [--tau 0.1] [--json out.json] ...
+  python -m evaluation reconstruction --gt SEED_FOLDER|GT.ply --pred CLOUD [--tau 0.1] [--json out.json] [--rrd out.rrd] ...
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
   python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
 
-Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot)
+Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot, --rrd)
 never land on an input of the run, inside a seed folder or ground_truth/ folder, or on a
 folder; that is checked before any scoring starts.
 """
@@ -37,6 +37,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     r.add_argument("--static-only", action="store_true", help="score against the static part of the GT only")
     r.add_argument("--json", type=Path, help="write every number, parameter and version here")
     r.add_argument("--ply", type=Path, help="write the GT cloud coloured by match (paper's figure 9)")
+    r.add_argument("--rrd", type=Path, help="write a Rerun recording: the prediction beside the GT coloured "
+                   "by match (figure 9), see docs/viewer.md")
     c = sub.add_parser("coverage", help="score an exploration trajectory by the surface it observes")
     c.add_argument("--gt", type=Path, required=True, help="seed folder (or its ground_truth/ folder)")
     c.add_argument("--trajectory", type=Path, required=True, help="trajectory .npz (generator) or COLMAP model folder")
@@ -56,7 +58,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-OUTPUTS = ("json", "ply", "plot")
+OUTPUTS = ("json", "ply", "plot", "rrd")
 
 
 def _inputs(args) -> tuple[list[Path], list[Path]]:
@@ -131,6 +133,10 @@ def main(argv=None) -> int:
             print(reconstruction_table(results))
             if args.ply:
                 _write(args.ply, colour_ply, ctx, args.tau)
+            if args.rrd:
+                from datasets.viewer.match import write_match_recording
+
+                _write(args.rrd, write_match_recording, ctx, args.tau)
         elif args.task == "tracks":
             results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)
             print(tracks_table(results))

@@ -1,0 +1,71 @@
+"""What every recording shares: the subsampling rule, the label colours as an annotation
+context, and a file written whole or not at all."""
+
+from __future__ import annotations
+
+import math
+import os
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from exporters.palette import UNLABELLED, label_colors
+
+APPLICATION_ID = "buildee-sites"
+MAX_POINTS = 1_000_000  # default cap on the points of one logged cloud
+UNLABELLED_ID = 65535   # class id of unlabelled pixels and points (label -1)
+FRAME_TIMELINE = "frame"  # sequence timeline: frame index t of a trajectory
+TIME_TIMELINE = "time"    # duration timeline: the frame's timestamp, seconds
+
+
+def subsample_stride(n: int, max_points: int) -> int:
+    """The stated rule: a cloud of ``n`` points is logged as ``points[::k]`` with
+    ``k = ceil(n / max_points)`` (every point when it fits), i.e. ``ceil(n / k)`` points."""
+    if max_points < 1:
+        raise ValueError(f"max_points must be a positive integer, got {max_points}")
+    return max(1, math.ceil(n / max_points))
+
+
+def subsampled_count(n: int, max_points: int) -> int:
+    """How many of ``n`` points the rule keeps."""
+    return math.ceil(n / subsample_stride(n, max_points)) if n else 0
+
+
+def class_ids(labels: np.ndarray) -> np.ndarray:
+    """Label ids as Rerun class ids (uint16): the same numbers, -1 (unlabelled) as 65535."""
+    labels = np.asarray(labels)
+    return np.where(labels < 0, UNLABELLED_ID, labels).astype(np.uint16)
+
+
+def annotation_context(names: list[str]):
+    """The label table as a Rerun annotation context: class id = label id, the class name and
+    its colour (exporters.palette), plus 65535 'unlabelled' in black."""
+    import rerun as rr
+
+    colors = label_colors(names)
+    infos = [rr.AnnotationInfo(id=i, label=name, color=tuple(int(c) for c in colors[i]))
+             for i, name in enumerate(names)]
+    infos.append(rr.AnnotationInfo(id=UNLABELLED_ID, label="unlabelled", color=UNLABELLED))
+    return rr.AnnotationContext(infos)
+
+
+@contextmanager
+def recording_file(path: str | Path, recording_id: str):
+    """A RecordingStream saving to ``path``: written under a temporary name beside it and
+    renamed when everything is logged, so an interrupted run leaves no half-written .rrd."""
+    import rerun as rr
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+    rec.save(tmp)
+    try:
+        yield rec
+        rec.flush()
+        rec.disconnect()
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            rec.disconnect()
+            tmp.unlink()
