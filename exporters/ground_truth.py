@@ -2,15 +2,18 @@
 
 - ``points.ply``: the labelled surface point cloud for scoring reconstructions, sampled
   uniformly on every surface at ``scoring_density`` points per square metre, objects placed
-  as at the scene's first frame. Binary PLY, vertex properties x, y, z (float32, world
-  metres), red, green, blue (uchar, the label's colour), label (int, id into the label
-  table), instance (int, id into the object table), dynamic (uchar, 1 on moving objects).
+  as at the scene's first frame, except on faces resting on the ground (docs/scenes.md).
+  Binary PLY, vertex properties x, y, z (float32, world metres), red, green, blue (uchar,
+  the label's colour), label (int, id into the label table), instance (int, id into the
+  object table), dynamic (uchar, 1 on moving objects), observable (uchar, 1 if visible from
+  some observability viewpoint: ``generator.geometry.observability``).
 - ``mesh.ply``: the scene's triangles at the first frame, world coordinates (float32),
   vertex colours by label; face properties label and instance.
 - ``scene.h5``: everything needed to recompute visibility for any pose and frame: every
   rigid part in its own frame (static parts in world coordinates), the matrices of the
   dynamic parts at every frame of the animation, the simulator's surface points (with the
-  normals the visibility rules use), the camera and view limits of the generator.
+  normals the visibility rules use and their ``observable`` mask), the observability
+  viewpoints, the camera and view limits of the generator.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import h5py
 import numpy as np
 
 from generator.geometry.parts import MeshPart
-from generator.geometry.sampling import sample_triangles
+from generator.geometry.sampling import ground_height, outward_normals, sample_part
 from generator.geometry.seeding import stream
 
 from . import FORMAT_VERSION
@@ -40,27 +43,42 @@ def _place(part: MeshPart, matrix: np.ndarray, local: np.ndarray) -> np.ndarray:
 
 def sample_scoring_points(parts: list[MeshPart], label_ids: dict[str, int], density: float, seed: int) -> dict:
     """Uniform samples on every part at ``density`` points/m^2 at the parts' current matrices:
-    ``xyz`` (N, 3) float64 world metres, ``label``, ``instance`` (N,) int32, ``dynamic`` (N,) bool.
-    Seeded per part name, so adding a part does not move the samples of the others."""
-    xyz, label, instance, dynamic = [], [], [], []
+    ``xyz`` (N, 3) float64 world metres, ``normals`` (N, 3) world outward unit normals (zero
+    on open surfaces), ``label``, ``instance`` (N,) int32, ``dynamic`` (N,) bool.
+    Seeded per part name, so adding a part does not move the samples of the others. Faces
+    resting on the ground carry no points (``generator.geometry.sampling.contact_faces``)."""
+    xyz, normals, label, instance, dynamic = [], [], [], [], []
+    ground_z = ground_height(parts)
     for i, p in enumerate(parts):
-        pts, _ = sample_triangles(p.vertices, p.faces, density, stream(seed, "scoring-points", p.name))
+        pts, face = sample_part(p, density, stream(seed, "scoring-points", p.name), ground_z)
         xyz.append(_place(p, p.matrix, pts))
+        normals.append(_turn_normals(p, outward_normals(p, face)))
         label.append(np.full(len(pts), label_ids[p.label], np.int32))
         instance.append(np.full(len(pts), i, np.int32))
         dynamic.append(np.full(len(pts), p.dynamic, bool))
-    return {"xyz": np.concatenate(xyz), "label": np.concatenate(label), "instance": np.concatenate(instance),
-            "dynamic": np.concatenate(dynamic)}
+    return {"xyz": np.concatenate(xyz), "normals": np.concatenate(normals), "label": np.concatenate(label),
+            "instance": np.concatenate(instance), "dynamic": np.concatenate(dynamic)}
+
+
+def _turn_normals(part: MeshPart, normals: np.ndarray) -> np.ndarray:
+    """Normals from a dynamic part's frame to the world (inverse-transpose), unit length."""
+    if not part.dynamic or not len(normals):
+        return normals
+    n = normals @ np.linalg.inv(part.matrix[:3, :3])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
 
 
 def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[str], surface: dict,
                        frames: np.ndarray, matrices: np.ndarray, fps: float, K: np.ndarray, width: int, height: int,
                        near: float, far: float, points_density: float, seed: int,
-                       scoring_density: float = DEFAULT_SCORING_DENSITY) -> Path:
+                       scoring_density: float = DEFAULT_SCORING_DENSITY, *, viewpoints: np.ndarray) -> Path:
     """Write points.ply, mesh.ply and scene.h5 into ``folder``.
 
     ``parts`` as the Simulator holds them (``Simulator.scene_parts()``, matrices of the first
-    frame); ``surface`` from ``Simulator.surface_sample()``; ``frames`` (F,) animation frame
+    frame); ``surface`` from ``Simulator.surface_sample()`` plus ``observable`` (its
+    ``observable_points_mask``); ``viewpoints`` (K, 3) the observability viewpoints that mask
+    used (the scoring cloud's mask uses them too); ``frames`` (F,) animation frame
     numbers and ``matrices`` (F, D, 4, 4) world_from_object of the D dynamic parts (in part
     order) at those frames; ``near``/``far`` the visibility depth limits (planar, metres).
     """
@@ -75,13 +93,19 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     comments = [f"buildee ground truth format {FORMAT_VERSION}", "units metres, world frame Z up",
                 f"labels {json.dumps(labels)}"]
 
-    pts = sample_scoring_points([p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)],
-                                label_ids, scoring_density, seed)
+    from generator.geometry.observability import observable_mask  # loads open3d (after bpy, if any)
+    from generator.geometry.raycast import SceneGeometry
+
+    placed = [p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)]
+    pts = sample_scoring_points(placed, label_ids, scoring_density, seed)
+    viewpoints = np.asarray(viewpoints, np.float64).reshape(-1, 3)
+    observable = observable_mask(SceneGeometry(placed), pts["xyz"], pts["normals"], pts["instance"], viewpoints)
     c = colors[pts["label"]]
     write_ply(folder / "points.ply", {
         "x": pts["xyz"][:, 0].astype(np.float32), "y": pts["xyz"][:, 1].astype(np.float32),
         "z": pts["xyz"][:, 2].astype(np.float32), "red": c[:, 0], "green": c[:, 1], "blue": c[:, 2],
-        "label": pts["label"], "instance": pts["instance"], "dynamic": pts["dynamic"].astype(np.uint8)},
+        "label": pts["label"], "instance": pts["instance"], "dynamic": pts["dynamic"].astype(np.uint8),
+        "observable": observable.astype(np.uint8)},
         comments=comments + [f"scoring_density {scoring_density} points per square metre", f"seed {seed}"])
 
     verts, faces, vlabel, flabel, finst, offset = [], [], [], [], [], 0
@@ -128,6 +152,14 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
             s.create_dataset(key, data=np.asarray(surface[key], np.float64), **kw)
         s.create_dataset("part", data=np.asarray(surface["part"], np.int32), **kw)
         s.create_dataset("label", data=np.asarray(surface["labels"], np.int32), **kw)
+        s.create_dataset("observable", data=np.asarray(surface["observable"], bool), **kw)
+        o = f.create_group("observability")
+        o["viewpoints"] = viewpoints
+        o.attrs.update({"rule": "visible from at least one viewpoint, looking in any direction, under the "
+                                "simulator's visibility rules with no depth limit, objects at the first frame "
+                                "(generator/geometry/observability.py)",
+                        "scoring_points_observable": int(observable.sum()),
+                        "scoring_points": int(len(observable))})
         cam = f.create_group("camera")
         cam["K"] = np.asarray(K, np.float64)
         cam.attrs.update({"width": int(width), "height": int(height), "near": float(near), "far": float(far)})
@@ -144,10 +176,14 @@ def write_simulator_ground_truth(sim, folder: str | Path, seed: int,
     for f in frames:
         sim.set_frame(int(f))
         matrices.append(sim.dynamic_object_matrices())
+    from generator.geometry.observability import default_viewpoints
+
     sim.set_frame(first)
-    return write_ground_truth(folder, sim.scene_parts(), sim.labels, sim.surface_sample(), frames, np.stack(matrices),
+    surface = sim.surface_sample() | {"observable": sim.observable_points_mask}
+    return write_ground_truth(folder, sim.scene_parts(), sim.labels, surface, frames, np.stack(matrices),
                               sim.fps, sim.K, sim.width, sim.height, sim.clip_start,
-                              min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density)
+                              min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density,
+                              viewpoints=default_viewpoints(sim.spawn_points))
 
 
 def _with_matrix(part: MeshPart, matrix: np.ndarray) -> MeshPart:
@@ -164,7 +200,8 @@ class GroundTruthScene:
 
     ``parts``: rigid parts with matrices of the first frame; ``frames`` (F,) animation frame
     numbers; ``matrices`` (F, D, 4, 4) of the dynamic parts ``dynamic_parts`` (D,);
-    ``surface``: local, local_normals, part, label; camera ``K``, ``width``, ``height`` and
+    ``surface``: local, local_normals, part, label and (when stored) observable; ``viewpoints``
+    (K, 3) of the observability mask (None in files without one); camera ``K``, ``width``, ``height`` and
     visibility limits ``near``, ``far`` (metres); ``fps``; ``labels``.
     """
 
@@ -182,6 +219,7 @@ class GroundTruthScene:
     far: float
     fps: float
     seed: int
+    viewpoints: np.ndarray | None = None
 
     def frame_index(self, frame: int) -> int:
         """Row of ``matrices`` for an animation frame (frames outside the range clamp to its ends)."""
@@ -226,9 +264,10 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
                               matrix=mats[0, slot[i]].copy() if dynamic[i] else np.eye(4), closed=bool(closed[i]),
                               outward=int(outward[i]), source=sources[i])
                      for i, name in enumerate(names)]
-            surface = {k: s[k][()] for k in ("local", "local_normals", "part", "label")}
+            surface = {k: s[k][()] for k in ("local", "local_normals", "part", "label", "observable") if k in s}
+            viewpoints = f["observability/viewpoints"][()] if "observability" in f else None
             return GroundTruthScene(folder, labels, parts, frames, dyn, mats, surface, cam["K"][()],
                                     int(cam.attrs["width"]), int(cam.attrs["height"]), float(cam.attrs["near"]),
-                                    float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]))
+                                    float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]), viewpoints)
     except (OSError, KeyError) as exc:
         raise GroundTruthError(f"{folder / 'scene.h5'}: unreadable ground truth ({exc.__class__.__name__}: {exc})") from exc

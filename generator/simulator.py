@@ -18,6 +18,7 @@ from .blender.render import Renderer, RenderSettings, apply_settings, resolve_se
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.parts import MeshPart
+from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -126,6 +127,7 @@ class Simulator(PaperAPI):
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self.last_visibility = VisibilityStats()
+        self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
 
         self._world_from_camera = bcam.read_pose(self._camera)
         self._initial_pose = self._world_from_camera.copy()
@@ -229,6 +231,22 @@ class Simulator(PaperAPI):
         return np.stack([p.matrix for p in self._parts if p.dynamic]) if self.dynamic_objects else np.zeros((0, 4, 4))
 
     @property
+    @property
+    def observable_points_mask(self) -> np.ndarray:
+        """(N,) bool: the point is visible from at least one of the observability viewpoints
+        (spawn points) in some direction, with no depth limit, dynamic objects at the first
+        animation frame (generator/geometry/observability.py). Computed on first use, cached."""
+        if self._observable is None:
+            frame, first = self.frame, self.frame_range[0]
+            self.set_frame(first)
+            try:
+                pts = self._points
+                self._observable = observable_mask(self._geometry, pts.world, pts.world_normals, pts.part,
+                                                   default_viewpoints(self.spawn_points))
+            finally:
+                self.set_frame(frame)
+        return self._observable.copy()
+
     def coverage(self) -> float:
         """Share of all surface points observed at least once (0 to 1)."""
         n = len(self.observed_points_mask)

@@ -1,8 +1,11 @@
-"""Area-weighted, seeded sampling of points on triangle surfaces."""
+"""Area-weighted, seeded sampling of points on triangle surfaces, and which faces carry
+surface points (all but the faces of solids resting on the ground: docs/scenes.md)."""
 
 from __future__ import annotations
 
 import numpy as np
+
+from .parts import MeshPart, face_normals
 
 
 def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -37,3 +40,58 @@ def sample_triangles(
     a, b, c = (vertices[faces[face, k]] for k in range(3))
     points = (1 - r1)[:, None] * a + (r1 * (1 - r2))[:, None] * b + (r1 * r2)[:, None] * c
     return points, face
+
+
+# ---- which faces carry surface points -------------------------------------------------
+GROUND_LABEL = "Ground"
+CONTACT_TOLERANCE = 0.01  # metres: a face this close to the ground plane lies on it
+CONTACT_COS = 0.999  # a contact face's outward normal is within ~2.6 degrees of straight down
+
+
+def ground_height(parts: list[MeshPart]) -> float | None:
+    """z (metres) of the scene's ground plane: the parts labelled ``Ground`` when they are
+    all flat and horizontal (vertex heights within ``CONTACT_TOLERANCE``); None otherwise
+    (no ground, or an uneven one: then no face counts as a contact face)."""
+    z = [p.world_vertices()[:, 2] for p in parts if p.label == GROUND_LABEL and len(p.vertices)]
+    if not z:
+        return None
+    z = np.concatenate(z)
+    return float(z.max()) if float(z.max() - z.min()) <= CONTACT_TOLERANCE else None
+
+
+def contact_faces(part: MeshPart, ground_z: float | None) -> np.ndarray:
+    """(F,) bool: faces of ``part`` resting on the ground, which no camera can see: faces of
+    a closed part (a solid) whose outward normal points straight down and whose three
+    vertices lie within ``CONTACT_TOLERANCE`` of the ground plane, at the part's current
+    matrix. The ground itself and open surfaces have none."""
+    faces = np.asarray(part.faces, dtype=np.int64)
+    out = np.zeros(len(faces), dtype=bool)
+    if ground_z is None or part.label == GROUND_LABEL or not part.closed or len(faces) == 0:
+        return out
+    m = np.asarray(part.matrix, dtype=np.float64)
+    world_z = part.world_vertices()[:, 2]
+    low = np.all(np.abs(world_z[faces] - ground_z) <= CONTACT_TOLERANCE, axis=1)
+    if not low.any():
+        return out
+    n = face_normals(np.asarray(part.vertices, np.float64), faces[low]) * part.outward
+    n = n @ np.linalg.inv(m[:3, :3])  # normals move with the inverse-transpose (mirrors included)
+    nz = n[:, 2] / np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+    out[np.flatnonzero(low)[nz <= -CONTACT_COS]] = True
+    return out
+
+
+def sample_part(part: MeshPart, density: float, rng: np.random.Generator,
+                ground_z: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sample_triangles` on a part's faces minus its :func:`contact_faces`, in the
+    part's own frame. Returns ``(points (n, 3), face_index (n,) into part.faces)``."""
+    keep = np.flatnonzero(~contact_faces(part, ground_z))
+    pts, face = sample_triangles(part.vertices, np.asarray(part.faces)[keep], density, rng)
+    return pts, keep[face]
+
+
+def outward_normals(part: MeshPart, face_index: np.ndarray) -> np.ndarray:
+    """Unit normals (n, 3) in the part's frame of points on faces ``face_index``: outward
+    on closed parts (the visibility rules' back-face test uses them), zero on open ones."""
+    if not part.closed:
+        return np.zeros((len(face_index), 3))
+    return face_normals(np.asarray(part.vertices, np.float64), np.asarray(part.faces, np.int64))[face_index] * part.outward

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .parts import MeshPart, face_normals
-from .sampling import sample_triangles
+from .parts import MeshPart
+from .sampling import ground_height, outward_normals, sample_part
 from .seeding import stream
 
 
 class SurfacePoints:
-    """Points sampled on every part, stored part by part in contiguous ranges.
+    """Points sampled on every part (but not on faces resting on the ground:
+    :func:`.sampling.contact_faces`, judged at the parts' current matrices), stored part by
+    part in contiguous ranges.
 
     ``local`` (N, 3) metres: world coordinates for static parts, object coordinates for
     dynamic ones (the paper's convention). ``local_normals`` (N, 3): outward unit normals
@@ -23,13 +25,11 @@ class SurfacePoints:
         locals_, normals, part_idx = [], [], []
         ranges = np.zeros((len(parts), 2), dtype=np.int64)
         start = 0
+        ground_z = ground_height(parts)
         for i, p in enumerate(parts):
             rng = stream(seed, "surface-points", p.name)
-            pts, face = sample_triangles(p.vertices, p.faces, density, rng)
-            if p.closed:
-                nrm = face_normals(p.vertices, p.faces)[face] * p.outward
-            else:
-                nrm = np.zeros_like(pts)
+            pts, face = sample_part(p, density, rng, ground_z)
+            nrm = outward_normals(p, face)
             locals_.append(pts)
             normals.append(nrm)
             part_idx.append(np.full(len(pts), i, dtype=np.int32))

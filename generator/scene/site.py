@@ -342,10 +342,16 @@ def _band_candidates(rng: np.random.Generator, lo: float, hi: float, n: int):
         yield (x, y), yaw
 
 
+GROUND_MARGIN = 20.0  # metres of ground beyond the site's edge on every side (seen from the spawn volume)
+
+
 def ground_part(size: float) -> Part:
-    """The ground: a 0.5 m thick slab whose top is z = 0, 40 m wider than the site."""
-    b = MeshBuilder().box((size + 40.0, size + 40.0, 0.5), (0, 0, -0.25), material="ground")
-    return Part("Ground", b.build())
+    """The ground: one flat top surface at z = 0 (two triangles, normal up), ``GROUND_MARGIN``
+    metres wider than the site on every side. It has no underside and no sides below
+    grade: nothing a camera above it could see (docs/scenes.md)."""
+    h = size / 2 + GROUND_MARGIN
+    verts = [(-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0)]  # counter-clockwise seen from above
+    return Part("Ground", MeshBuilder().add(verts, quads=[(0, 1, 2, 3)], material="ground").build())
 
 
 def fence_part(start: np.ndarray, end: np.ndarray) -> Part:

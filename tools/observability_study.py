@@ -1,0 +1,99 @@
+"""Measure the observability mask of a site: how the observable share converges with the
+number of viewpoints, what it costs, and where the never-observable points lie.
+
+Usage:
+  .venv/bin/python tools/observability_study.py --seed 0 [--blend site.blend] [--density 10]
+      [--viewpoints 1024] [--json out.json]
+
+Without ``--blend`` the medium site of the seed is built in a temporary folder. The scoring
+cloud is sampled as exporters.ground_truth does (at ``--density`` points/m^2; the share does
+not depend on the density, only its noise does). A site built by an older checkout (ground
+slab, sampled contact faces) is measured the same way: its slab is not flat, so no face
+counts as a contact face and every face is sampled, as that checkout did.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+
+def study(blend: Path, seed: int, density: float, viewpoints: int, size: float) -> dict:
+    from generator import Simulator  # bpy before open3d
+    from exporters.ground_truth import sample_scoring_points
+    from generator.geometry.observability import default_viewpoints, observable_mask
+    from generator.geometry.raycast import SceneGeometry
+
+    sim = Simulator(blend, points_density=0.01, seed=seed)
+    sim.set_frame(sim.frame_range[0])
+    parts = sim.scene_parts()
+    pts = sample_scoring_points(parts, sim.label_ids, density, seed)
+    views = default_viewpoints(sim.spawn_points, viewpoints)
+    t0 = time.perf_counter()
+    geometry = SceneGeometry(parts)
+    counts: list[int] = []
+    mask = observable_mask(geometry, pts["xyz"], pts["normals"], pts["instance"], views, counts)
+    seconds = time.perf_counter() - t0
+    n = len(mask)
+    xyz, label = pts["xyz"], pts["label"]
+    ground = label == sim.label_ids["Ground"]
+    below = xyz[:, 2] < -0.05
+    outside = ground & (np.abs(xyz[:, :2]).max(axis=1) > size / 2)
+
+    def share(sel):
+        return {"points": int(sel.sum()), "share_of_all": float(sel.sum() / n),
+                "never_observable_share_of_all": float((sel & ~mask).sum() / n),
+                "observable_share_of_these": float((sel & mask).sum() / max(sel.sum(), 1))}
+
+    per_label = {}
+    for i, name in enumerate(sim.labels):
+        sel = label == i
+        if sel.any():
+            per_label[name] = share(sel)
+    return {"blend": str(blend), "seed": seed, "density": density, "points": n,
+            "viewpoints": len(views), "observable": int(mask.sum()), "observable_share": float(mask.mean()),
+            "never_observable_share": float(1 - mask.mean()), "seconds": seconds,
+            "curve": counts, "below_ground": share(below), "ground_outside_site": share(outside),
+            "per_label": per_label}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--blend", type=Path)
+    ap.add_argument("--preset", default="medium")
+    ap.add_argument("--density", type=float, default=10.0)
+    ap.add_argument("--viewpoints", type=int, default=1024)
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args()
+    from generator.scene import site_params
+
+    size = site_params(a.preset).size
+    with tempfile.TemporaryDirectory() as tmp:
+        blend = a.blend
+        if blend is None:
+            from generator.scene import build_site
+
+            blend = build_site(a.seed, a.preset, tmp, preview=False).blend
+        r = study(blend, a.seed, a.density, a.viewpoints, size)
+    r["preset"] = a.preset
+    text = json.dumps(r, indent=1)
+    if a.json:
+        a.json.write_text(text)
+    c = r["curve"]
+    print(f"seed {a.seed}: {r['points']:,} points, observable {r['observable_share']:.4f} after {r['viewpoints']} "
+          f"viewpoints ({r['seconds']:.1f} s); after 1/4/16/64/256: "
+          + ", ".join(f"{c[k - 1] / r['points']:.4f}" for k in (1, 4, 16, 64, 256) if k <= len(c)))
+
+
+if __name__ == "__main__":
+    main()
