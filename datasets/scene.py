@@ -19,7 +19,7 @@ import numpy as np
 from exporters import FORMAT_VERSION
 from exporters.exr import read_frame_exr
 from exporters.frames import frame_names
-from exporters.hdf5 import DamagedFileError, attribute, group, open_file, read, text
+from exporters.hdf5 import H5_ERRORS, DamagedFileError, attribute, damaged, group, open_file, read, reason, text
 from exporters.manifest import read_manifest
 
 SUPPORTED_VERSIONS = (FORMAT_VERSION,)
@@ -30,12 +30,18 @@ class DatasetError(ValueError):
     message names the file and says what to do)."""
 
 
-def _checked(call, *args):
+def _checked(call, *args, path=None):
     """``call(*args)``, with a damaged file reported as a :class:`DatasetError`."""
     try:
         return call(*args)
     except DamagedFileError as exc:
         raise DatasetError(str(exc)) from None
+    except DatasetError:
+        raise
+    except H5_ERRORS as exc:  # damaged HDF5 metadata can fail anywhere h5py looks
+        if path is None:
+            raise
+        raise DatasetError(str(damaged(path, reason(exc)))) from None
 
 
 def _index(i, n: int, what: str) -> int:
@@ -84,7 +90,7 @@ class _H5:
 
     def read(self, key: str, sel=()) -> np.ndarray:
         """``file[key][sel]``; a damaged dataset (checksum, missing) raises DatasetError."""
-        return _checked(read, self.get(), key, self.path, sel)
+        return _checked(lambda: read(self.get(), key, self.path, sel), path=self.path)
 
     def __getstate__(self):
         return {"path": self.path, "_pid": None, "_file": None}
@@ -99,11 +105,15 @@ class Sequence:
         for name in ("tracks.h5", "trajectory.npz"):
             if not (folder / name).is_file():
                 raise DatasetError(f"{folder}: missing {name}; the seed folder is incomplete, regenerate it")
-        self._h5 = h5 = _H5(folder / "tracks.h5")
+        self._h5 = _H5(folder / "tracks.h5")
+        _checked(self._read_cameras, path=self._h5.path)
+
+    def _read_cameras(self) -> None:
+        h5 = self._h5
         f = h5.get()
         version = text(_checked(attribute, f, "format_version")) if "format_version" in f.attrs else None
         if version not in SUPPORTED_VERSIONS:
-            raise DatasetError(f"{folder / 'tracks.h5'}: format_version {version!r}; this reader reads "
+            raise DatasetError(f"{h5.path}: format_version {version!r}; this reader reads "
                                f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites or regenerate)")
         self.K = h5.read("cameras/K")
         cams = _checked(group, f, "cameras", h5.path)
@@ -198,7 +208,7 @@ class Sequence:
         occluded (Q, T), tracks_3d (Q, T, 3), point_ids (Q,) (checked for consistency)."""
         from exporters.tracks import read_tapvid
 
-        return _checked(read_tapvid, self._h5.get(), self._h5.path)
+        return _checked(lambda: read_tapvid(self._h5.get(), self._h5.path), path=self._h5.path)
 
 
 class Scene:

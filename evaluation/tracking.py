@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters.hdf5 import DamagedFileError, attribute, group, open_file
+from exporters.hdf5 import H5_ERRORS, DamagedFileError, attribute, damaged, group, open_file, reason, verify
 
 from .inputs import InputError, regular_file
 
@@ -36,11 +36,14 @@ def read_tracks_gt(path: Path) -> tuple[dict, tuple[int, int]]:
 
     try:
         with open_file(path) as f:
+            verify(f, path)  # every checksum of the file: a damaged ground truth is never scored
             truth = read_tapvid(f, path)
             cams = group(f, "cameras", path)
             size = (int(attribute(cams, "width", path)), int(attribute(cams, "height", path)))
     except DamagedFileError as exc:
         raise InputError(f"{exc} (or give a trajectory's tracks.h5 written by python -m generator)") from None
+    except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks
+        raise InputError(f"{damaged(path, reason(exc))}") from None
     if min(size) <= 0:
         raise InputError(f"{path}: damaged file (image size {size}); regenerate this seed with python -m generator")
     return truth, size

@@ -80,7 +80,7 @@ def open_file(path: str | Path) -> h5py.File:
     try:
         return h5py.File(path, "r")
     except H5_ERRORS as exc:
-        raise damaged(path, f"not a readable HDF5 file: {_reason(exc)}") from None
+        raise damaged(path, f"not a readable HDF5 file: {reason(exc)}") from None
 
 
 def read(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None, sel=()) -> np.ndarray:
@@ -90,7 +90,7 @@ def read(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None,
     try:
         return node[key][sel]
     except H5_ERRORS as exc:
-        raise damaged(path, f"dataset {_name(node, key)}: {_reason(exc)}") from None
+        raise damaged(path, f"dataset {_name(node, key)}: {reason(exc)}") from None
 
 
 def group(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None) -> h5py.Group:
@@ -99,7 +99,7 @@ def group(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None
     try:
         g = node[key]
     except H5_ERRORS as exc:
-        raise damaged(path, f"group {_name(node, key)}: {_reason(exc)}") from None
+        raise damaged(path, f"group {_name(node, key)}: {reason(exc)}") from None
     if not isinstance(g, h5py.Group):
         raise damaged(path, f"{_name(node, key)} is not a group")
     return g
@@ -111,7 +111,7 @@ def attribute(node: h5py.Group | h5py.File, key: str, path: str | Path | None = 
     try:
         return node.attrs[key]
     except H5_ERRORS as exc:
-        raise damaged(path, f"attribute {_name(node, key)}: {_reason(exc)}") from None
+        raise damaged(path, f"attribute {_name(node, key)}: {reason(exc)}") from None
 
 
 def _name(node, key: str) -> str:
@@ -119,8 +119,32 @@ def _name(node, key: str) -> str:
     return f"{base.rstrip('/')}/{key}"
 
 
-def _reason(exc: BaseException) -> str:
+def reason(exc: BaseException) -> str:
+    """The first line of an h5py error, short."""
     message = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
     if isinstance(exc, KeyError):
         message = message.strip("'\"")
     return message[:160]
+
+
+def verify(f: h5py.File, path: str | Path | None = None) -> int:
+    """Read every dataset of an open file, chunk by chunk (bounded memory), so that every
+    checksum is tested; returns the number of bytes read. A failure raises DamagedFileError."""
+    path = path if path is not None else f.filename
+    total = 0
+    names: list[str] = []
+    try:
+        f.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
+    except H5_ERRORS as exc:
+        raise damaged(path, f"its index of datasets: {reason(exc)}") from None
+    for name in names:
+        try:
+            ds = f[name]
+            if ds.chunks is None or ds.size == 0:
+                total += np.asarray(ds[()]).nbytes
+                continue
+            for sel in ds.iter_chunks():
+                total += np.asarray(ds[sel]).nbytes
+        except H5_ERRORS as exc:
+            raise damaged(path, f"dataset /{name}: {reason(exc)}") from None
+    return total

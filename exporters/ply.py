@@ -99,14 +99,20 @@ class _Element:
     props: list[tuple[str, str, str | None]]  # (name, type code, list count type code or None)
 
 
+_MAX_HEADER_LINE = 1 << 20  # bytes; a longer header line (or a header past _MAX_HEADER) is refused
+_MAX_HEADER = 16 << 20
+
+
 def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
-    if f.readline().strip() != b"ply":
+    if f.readline(16).strip() != b"ply":
         raise PlyError(f"{path}: not a PLY file (it does not start with 'ply')")
     fmt, elements, comments = None, [], []
     while True:
-        line = f.readline()
+        line = f.readline(_MAX_HEADER_LINE + 1)
         if not line:
             raise PlyError(f"{path}: truncated PLY header (no end_header)")
+        if len(line) > _MAX_HEADER_LINE or f.tell() > _MAX_HEADER:
+            raise PlyError(f"{path}: PLY header line or header longer than {_MAX_HEADER_LINE >> 20} MiB; not a point cloud we read")
         words = line.decode("ascii", errors="replace").split()
         if not words or words[0] in ("obj_info",):
             continue
@@ -119,14 +125,18 @@ def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
                 comments.append(line.decode("ascii", errors="replace").strip()[8:])
             elif words[0] == "element":
                 elements.append(_Element(words[1], int(words[2]), []))
+                if elements[-1].count < 0:
+                    raise PlyError(f"{path}: element {words[1]!r} has a negative count ({words[2]})")
             elif words[0] == "property" and words[1] == "list":
                 elements[-1].props.append((words[4], _TYPES[words[3]], _TYPES[words[2]]))
             elif words[0] == "property":
                 elements[-1].props.append((words[2], _TYPES[words[1]], None))
             else:
-                raise PlyError(f"{path}: unexpected PLY header line {line.strip()!r}")
+                raise PlyError(f"{path}: unexpected PLY header line {line.strip()[:80]!r}")
         except (IndexError, KeyError, ValueError) as exc:
-            raise PlyError(f"{path}: bad PLY header line {line.strip()!r}") from exc
+            if isinstance(exc, PlyError):
+                raise
+            raise PlyError(f"{path}: bad PLY header line {line.strip()[:80]!r}") from exc
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise PlyError(f"{path}: unknown PLY format {fmt!r}")
     return fmt, elements, comments

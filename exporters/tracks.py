@@ -32,7 +32,8 @@ import numpy as np
 from generator.geometry.camera import project
 
 from . import FORMAT_VERSION
-from .hdf5 import CHECKSUM, DamagedFileError, attribute, create_file, damaged, dataset, open_file, read, text, text_attribute
+from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, attribute, create_file, damaged, dataset, group, open_file, read,
+                   reason, text, text_attribute)
 
 _CHUNK = 1 << 16
 
@@ -178,6 +179,15 @@ def read_tracks(path: str | Path) -> dict:
     """Everything in a tracks.h5 as numpy arrays (plus 'tapvid' and 'labels'). A damaged file
     (checksum, structure) raises :class:`DamagedFileError` naming it."""
     path = Path(path)
+    try:
+        return _read_tracks(path)
+    except DamagedFileError:
+        raise
+    except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks
+        raise damaged(path, reason(exc)) from None
+
+
+def _read_tracks(path: Path) -> dict:
     with open_file(path) as f:
         version = text(attribute(f, "format_version")) if "format_version" in f.attrs else None
         if version != FORMAT_VERSION:
@@ -201,10 +211,9 @@ TAPVID = ("query_points", "tracks", "occluded", "tracks_3d", "point_ids")
 def read_tapvid(f: h5py.File, path) -> dict:
     """The TAP-Vid query subset of an open tracks.h5, checked for consistency (shapes, query
     frames, finite positions, each query visible at its own frame where it was picked)."""
-    if "tapvid" not in f:
-        raise damaged(path, "no tapvid group")
-    tv = {k: read(f["tapvid"], k, path) for k in TAPVID}
-    q, T = len(tv["point_ids"]), len(f["cameras/world_from_camera"])
+    g = group(f, "tapvid", path)
+    tv = {k: read(g, k, path) for k in TAPVID}
+    q, T = len(tv["point_ids"]), len(read(f, "cameras/timestamps", path))
     shapes = {"query_points": (q, 3), "tracks": (q, T, 2), "occluded": (q, T), "tracks_3d": (q, T, 3)}
     for k, shape in shapes.items():
         if tv[k].shape != shape:
