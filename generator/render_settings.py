@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from dataclasses import dataclass, fields, replace
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE", "BLENDER_WORKBENCH")
+DEVICES = ("cpu", "gpu", "auto")  # Cycles device: the CPU, a CUDA/OptiX GPU, or a GPU when there is one
+DENOISE_PREFILTERS = ("NONE", "FAST", "ACCURATE")
+DENOISE_QUALITIES = ("HIGH", "BALANCED", "FAST")
+NO_GPU_MESSAGE = ("device 'gpu' asked for, but Cycles finds no CUDA or OptiX GPU on this machine; use device "
+                  "'cpu' or 'auto' (auto renders on a GPU when there is one, else on the CPU)")
 CRYPTOMATTE_LEVELS = 4  # objects ranked per pixel (two EXR layers)
 
 
@@ -12,9 +20,14 @@ CRYPTOMATTE_LEVELS = 4  # objects ranked per pixel (two EXR layers)
 class RenderSettings:
     """Render quality settings; None leaves the .blend's own value untouched.
 
-    samples: Cycles samples per pixel (EEVEE: TAA samples); bounces: Cycles max bounces;
-    denoise: OpenImageDenoise on the final image; denoise_prefilter: 'NONE', 'FAST' or
-    'ACCURATE'; threads: CPU threads (0 = all cores); resolution: (width, height) pixels.
+    samples: Cycles samples per pixel (EEVEE: TAA samples); bounces: Cycles max bounces
+    (also the diffuse, glossy and transmission limits); denoise: OpenImageDenoise on the final
+    image; denoise_prefilter: 'NONE', 'FAST' or 'ACCURATE' (cleaning of the albedo and normal
+    guides); denoise_quality: 'HIGH', 'BALANCED' or 'FAST' (OpenImageDenoise's network size);
+    light_tree: Cycles' light tree (helps scenes with many lights, costs time with a sun and
+    a sky); adaptive_threshold: Cycles' adaptive-sampling noise threshold, 0 = off; threads:
+    CPU threads (0 = all cores); resolution: (width, height) pixels; persistent_data: keep
+    Cycles' scene between renders; device: 'cpu', 'gpu' or 'auto' (None: the CPU).
     """
 
     engine: str | None = None
@@ -25,6 +38,10 @@ class RenderSettings:
     threads: int | None = None
     resolution: tuple[int, int] | None = None
     persistent_data: bool | None = None
+    denoise_quality: str | None = None
+    light_tree: bool | None = None
+    adaptive_threshold: float | None = None
+    device: str | None = None
 
     def merged(self, other: "RenderSettings") -> "RenderSettings":
         """These settings with every non-None field of ``other`` applied on top."""
@@ -33,12 +50,24 @@ class RenderSettings:
 
 PRESETS: dict[str, RenderSettings] = {
     # fast look: few samples, quick denoise, short light paths
-    "preview": RenderSettings("CYCLES", samples=4, denoise=True, denoise_prefilter="FAST", bounces=2, threads=0, persistent_data=True),
-    # the batch job's default: clean enough for training, ~11 s at 640x480 on 2 cores
-    "default": RenderSettings("CYCLES", samples=16, denoise=True, denoise_prefilter="FAST", bounces=4, threads=0, persistent_data=True),
+    "preview": RenderSettings("CYCLES", samples=4, denoise=True, denoise_prefilter="FAST", bounces=2, threads=0,
+                              persistent_data=True, denoise_quality="HIGH", light_tree=True, adaptive_threshold=0.01),
+    # the batch job's default: clean enough for training
+    "default": RenderSettings("CYCLES", samples=16, denoise=True, denoise_prefilter="FAST", bounces=4, threads=0,
+                              persistent_data=True, denoise_quality="HIGH", light_tree=True, adaptive_threshold=0.01),
     # paper-quality stills
-    "high": RenderSettings("CYCLES", samples=128, denoise=True, denoise_prefilter="ACCURATE", bounces=12, threads=0, persistent_data=True),
+    "high": RenderSettings("CYCLES", samples=128, denoise=True, denoise_prefilter="ACCURATE", bounces=12, threads=0,
+                           persistent_data=True, denoise_quality="HIGH", light_tree=True, adaptive_threshold=0.01),
 }
+
+
+def _choice(name: str, value, choices) -> None:
+    if value is not None and value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(str, choices))}, got {value!r}")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
@@ -52,14 +81,21 @@ def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
     s = base.merged(RenderSettings(**overrides))
     if s.engine is not None and s.engine not in ENGINES:
         raise ValueError(f"unknown render engine {s.engine!r}; choose one of {', '.join(ENGINES)}")
-    if s.samples is not None and (not isinstance(s.samples, int) or isinstance(s.samples, bool) or s.samples < 1):
+    if s.samples is not None and (not _is_int(s.samples) or s.samples < 1):
         raise ValueError(f"samples must be an integer >= 1, got {s.samples!r}")
-    if s.bounces is not None and (not isinstance(s.bounces, int) or s.bounces < 0):
+    if s.bounces is not None and (not _is_int(s.bounces) or s.bounces < 0):
         raise ValueError(f"bounces must be an integer >= 0, got {s.bounces!r}")
-    if s.threads is not None and (not isinstance(s.threads, int) or s.threads < 0):
+    if s.threads is not None and (not _is_int(s.threads) or s.threads < 0):
         raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {s.threads!r}")
-    if s.denoise_prefilter is not None and s.denoise_prefilter not in ("NONE", "FAST", "ACCURATE"):
-        raise ValueError(f"denoise_prefilter must be NONE, FAST or ACCURATE, got {s.denoise_prefilter!r}")
+    _choice("denoise_prefilter", s.denoise_prefilter, DENOISE_PREFILTERS)
+    _choice("denoise_quality", s.denoise_quality, DENOISE_QUALITIES)
+    _choice("device", s.device, DEVICES)
+    for name in ("denoise", "light_tree", "persistent_data"):
+        if getattr(s, name) is not None and not isinstance(getattr(s, name), bool):
+            raise ValueError(f"{name} must be True or False, got {getattr(s, name)!r}")
+    t = s.adaptive_threshold
+    if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 <= t < 1):
+        raise ValueError(f"adaptive_threshold must be a number in [0, 1) (0 = off), got {t!r}")
     if s.resolution is not None:
         try:
             w, h = (int(v) for v in s.resolution)
@@ -68,3 +104,13 @@ def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
         if w <= 0 or h <= 0 or (w, h) != tuple(s.resolution):
             raise ValueError(f"resolution must be two positive integers, got {s.resolution!r}")
     return s
+
+
+def probe_gpu() -> str | None:
+    """The GPU Cycles would render on ('OPTIX: <name>' or 'CUDA: <name>'), or None. Asked in a
+    child process (``python -m generator.blender.devices``), so the caller never imports bpy."""
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    r = subprocess.run([sys.executable, "-m", "generator.blender.devices"], capture_output=True, text=True, env=env,
+                       cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    lines = r.stdout.strip().splitlines()
+    return lines[-1] if r.returncode == 0 and lines and lines[-1] != "none" else None

@@ -15,6 +15,7 @@ from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
 from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
 from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
+from .blender.devices import active as active_device
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.parts import MeshPart
@@ -383,13 +384,22 @@ class Simulator(PaperAPI):
     def configure_render(self, preset: str | None = None, **overrides) -> RenderSettings:
         """Set render quality: a preset ('preview', 'default', 'high') and/or explicit
         ``engine``, ``samples``, ``denoise``, ``denoise_prefilter``, ``bounces``,
-        ``threads``, ``resolution=(width, height)``. Changing the resolution changes
-        ``K``, ``width`` and ``height`` (visibility uses the new image too)."""
+        ``threads``, ``resolution=(width, height)``, ``denoise_quality``, ``light_tree``,
+        ``adaptive_threshold``, ``device`` ('cpu', 'gpu' or 'auto': a CUDA/OptiX GPU when
+        there is one; 'gpu' without one raises DeviceUnavailableError; see
+        ``render_device``). Changing the resolution changes ``K``, ``width`` and ``height``
+        (visibility uses the new image too)."""
         self._check_current()
         settings = resolve_settings(preset, **overrides)
         apply_settings(settings)
         self._refresh_intrinsics()
         return settings
+
+    @property
+    def render_device(self) -> str:
+        """What Cycles renders on: 'CPU', or the GPU backend and names (e.g. 'OPTIX: NVIDIA ...')."""
+        self._check_current()
+        return active_device()
 
     @property
     def instance_table(self) -> list[dict]:

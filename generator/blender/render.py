@@ -22,11 +22,15 @@ import bpy
 
 from ..passes import RawPasses, read_blender_exr, read_display_tiff
 from ..render_settings import CRYPTOMATTE_LEVELS, ENGINES, PRESETS, RenderSettings, resolve_settings  # noqa: F401
-from . import session
+from . import devices, session
+from .devices import DeviceUnavailableError  # noqa: F401
 from .egl import require_gpu_context
 
 def apply_settings(settings: RenderSettings) -> None:
-    """Write settings into the open scene (None fields are left as the .blend has them)."""
+    """Write settings into the open scene (None fields are left as the .blend has them;
+    the device, when None, stays as chosen for this file, the CPU at first). Raises
+    :class:`DeviceUnavailableError` for device='gpu' without a GPU."""
+    devices.select(settings.device)  # first: a missing GPU leaves the scene untouched
     with session.quiet():  # touching Cycles' device settings makes it log its device probe
         _apply_settings(settings)
 
@@ -46,7 +50,6 @@ def _apply_settings(settings: RenderSettings) -> None:
     if settings.persistent_data is not None:
         r.use_persistent_data = settings.persistent_data
     c = scene.cycles
-    c.device = "CPU"
     if settings.samples is not None:
         c.samples = settings.samples
         scene.eevee.taa_render_samples = settings.samples
@@ -55,10 +58,18 @@ def _apply_settings(settings: RenderSettings) -> None:
         c.denoiser = "OPENIMAGEDENOISE"
     if settings.denoise_prefilter is not None:
         c.denoising_prefilter = settings.denoise_prefilter
+    if settings.denoise_quality is not None:
+        c.denoising_quality = settings.denoise_quality
     if settings.bounces is not None:
         c.max_bounces = settings.bounces
-        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
-            setattr(c, name, min(getattr(c, name), settings.bounces))
+        for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+            setattr(c, name, settings.bounces)
+    if settings.light_tree is not None:
+        c.use_light_tree = settings.light_tree
+    if settings.adaptive_threshold is not None:
+        c.use_adaptive_sampling = settings.adaptive_threshold > 0
+        if settings.adaptive_threshold > 0:
+            c.adaptive_threshold = settings.adaptive_threshold
 
 
 class Renderer:
@@ -113,6 +124,7 @@ class Renderer:
     def render(self) -> RawPasses:
         """One Blender render; returns its passes. Temporary files never outlive the call."""
         require_gpu_context(bpy.context.scene.render.engine)
+        devices.select(None)  # a file opened since the last settings renders on the CPU unless told
         try:
             t0 = time.perf_counter()
             with session.quiet():
