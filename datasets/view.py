@@ -64,7 +64,7 @@ def run(args) -> Path | None:
     from datasets import DatasetError, Scene
 
     from .viewer.common import APPLICATION_ID, recording_file
-    from .viewer.seed import record_scene
+    from .viewer.seed import blueprint, record_scene
 
     try:
         scene = Scene(args.seed)
@@ -91,11 +91,11 @@ def run(args) -> Path | None:
             import rerun as rr
 
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-            rec.spawn()
+            rec.spawn(default_blueprint=blueprint(kinds))
             record_scene(rec, scene, kinds, args.max_points, progress)
             rec.flush()
             return None
-        with recording_file(out, recording_id) as rec:
+        with recording_file(out, recording_id, blueprint(kinds)) as rec:
             record_scene(rec, scene, kinds, args.max_points, progress)
     except DatasetError as exc:
         raise ViewError(str(exc)) from None

@@ -51,15 +51,16 @@ def annotation_context(names: list[str]):
 
 
 @contextmanager
-def recording_file(path: str | Path, recording_id: str):
-    """A RecordingStream saving to ``path``: written under a temporary name beside it and
-    renamed when everything is logged, so an interrupted run leaves no half-written .rrd."""
+def recording_file(path: str | Path, recording_id: str, blueprint=None):
+    """A RecordingStream saving to ``path`` (with ``blueprint`` as the default layout): written
+    under a temporary name beside it and renamed when everything is logged, so an interrupted
+    run leaves no half-written .rrd."""
     import rerun as rr
 
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-    rec.save(tmp)
+    rec.save(tmp, default_blueprint=blueprint)
     try:
         yield rec
         rec.flush()

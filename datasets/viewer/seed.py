@@ -43,6 +43,23 @@ def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: 
     return counts
 
 
+def blueprint(kinds: list[str]):
+    """The default layout: the site in 3D; per trajectory its RGB with the tracks, labels and
+    depth; the coverage curves."""
+    import rerun.blueprint as rrb
+
+    def camera_view(kind: str, name: str, contents: list[str]):
+        return rrb.Spatial2DView(name=f"{kind}: {name}", origin=f"world/{kind}/camera",
+                                 contents=[f"$origin/{c}" for c in contents])
+
+    rows = [rrb.Horizontal(camera_view(kind, "RGB + tracks", ["rgb", "tracks"]), camera_view(kind, "labels", ["label"]),
+                           camera_view(kind, "depth", ["depth"])) for kind in kinds]
+    return rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(name="site", origin="world"),
+                                        rrb.Vertical(*rows, rrb.TimeSeriesView(name="coverage", origin="coverage")),
+                                        column_shares=[3, 2]),
+                         rrb.SelectionPanel(expanded=False), rrb.BlueprintPanel(expanded=False))
+
+
 def log_cloud(rec, scene: Scene, max_points: int) -> int:
     import rerun as rr
 

@@ -1,0 +1,80 @@
+"""Seconds to write a seed's Rerun recording (python -m datasets.view) against the seed's
+generation time (manifest.json "timing"), side by side with the strongest honest reference:
+reading the same data through the same readers without logging it (what any viewer must pay).
+
+Both passes in one process, alternating (reader pass first, so the file cache is warm for
+both), best of ``--repeat``. The recording goes to a temporary folder and is deleted.
+
+Usage: .venv/bin/python benchmarks/viewer.py SEED_FOLDER [--repeat 2] [--max-points 1000000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+from datasets import Scene  # noqa: E402
+from datasets.viewer import MAX_POINTS, record_seed  # noqa: E402
+from exporters.ply import read_ply  # noqa: E402
+
+
+def read_only(folder: Path) -> float:
+    """Everything the recording holds, read and converted, nothing logged."""
+    t0 = time.perf_counter()
+    scene = Scene(folder)
+    scene.point_cloud()
+    read_ply(scene.path / "ground_truth" / "mesh.ply")
+    for seq in scene.sequences:
+        _ = seq.coverage, seq.points
+        for t in range(len(seq)):
+            f = seq[t]
+            np.round(np.clip(f.rgb.astype(np.float32), 0, 1) * 255).astype(np.uint8)
+            vis = seq.visible_tracks(t)
+            seq.point_positions(t, vis["ids"])
+    return time.perf_counter() - t0
+
+
+def record(folder: Path, out: Path, max_points: int) -> tuple[float, dict]:
+    t0 = time.perf_counter()
+    counts = record_seed(folder, out, max_points=max_points)
+    return time.perf_counter() - t0, counts
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("seed", type=Path)
+    p.add_argument("--repeat", type=int, default=2)
+    p.add_argument("--max-points", type=int, default=MAX_POINTS)
+    args = p.parse_args()
+    scene = Scene(args.seed)
+    generation = float(scene.manifest["timing"]["seconds"])
+    n_gt = len(read_ply(args.seed / "ground_truth" / "points.ply").vertex["x"])
+    frames = {k: len(scene[k]) for k in scene.trajectories}
+    reads, writes, size, counts = [], [], 0, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "seed.rrd"
+        for _ in range(args.repeat):
+            reads.append(read_only(args.seed))
+            seconds, counts = record(args.seed, out, args.max_points)
+            writes.append(seconds)
+            size = out.stat().st_size
+    w, r = min(writes), min(reads)
+    print(f"seed {scene.seed}: {sum(frames.values())} frames {frames}, GT cloud {n_gt:,} points -> "
+          f"{counts['points']:,} logged (max {args.max_points:,})")
+    print(f"generation (manifest timing): {generation:.1f} s")
+    print(f"recording written: {w:.2f} s (best of {args.repeat}: {', '.join(f'{x:.2f}' for x in writes)}), "
+          f"{size / 1e6:.0f} MB = {100 * w / generation:.1f}% of the generation time (target <= 10%)")
+    print(f"reference, same reads without logging: {r:.2f} s; logging and writing add {w - r:.2f} s "
+          f"(x{w / r:.2f} of reading alone)")
+
+
+if __name__ == "__main__":
+    main()
