@@ -3,6 +3,7 @@ RRD reader (rerun.chunk.RrdReader): entities, frame timeline, poses, intrinsics,
 and the figure-9 classes equal what the seed's files hold (read with the exporters' readers)."""
 
 import math
+import os
 import subprocess
 import sys
 from collections import defaultdict
@@ -26,8 +27,8 @@ def seed_folder(finished):
     return finished[0] / "seed_000004"
 
 
-def run_module(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=ROOT)
+def run_module(*args, env=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=ROOT, env=env)
 
 
 def read_rrd(path) -> dict:
@@ -56,15 +57,23 @@ def column_major(values) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def recording(seed_folder, tmp_path_factory):
+def rrd_path(seed_folder, tmp_path_factory):
     out = tmp_path_factory.mktemp("view") / "seed4.rrd"
     r = run_module("datasets.view", str(seed_folder), "--out", str(out), "--max-points", "300")
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stdout.strip() == str(out)
-    return read_rrd(out)
+    assert [p.name for p in out.parent.iterdir()] == ["seed4.rrd"]  # no temporary file left beside it
+    return out
 
 
-def test_expected_entities_exist(recording):
+@pytest.fixture(scope="module")
+def recording(rrd_path):
+    return read_rrd(rrd_path)
+
+
+def test_expected_entities_exist(recording, rrd_path):
+    reader = RrdReader(rrd_path)
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1  # the data and its default layout
     expected = {"/world/ground_truth/points", "/world/ground_truth/mesh"}
     for kind in KINDS:
         expected |= {f"/world/{kind}/camera", f"/world/{kind}/path", f"/world/{kind}/tracks", f"/coverage/{kind}"}
@@ -174,12 +183,14 @@ def test_not_a_seed_folder_is_one_line_and_exit_2(tmp_path):
     (["--out", "{seed}/inside.rrd"], "inside the seed folder"),
     (["--out", "{tmp}/missing/x.rrd"], "does not exist"),
     (["--max-points", "0"], "--max-points"),
+    (["--spawn"], "no display"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(seed_folder, tmp_path, args, says):
     args = [a.format(seed=seed_folder, tmp=tmp_path) for a in args]
-    if "--out" not in args:
+    if "--out" not in args and "--spawn" not in args:
         args += ["--out", str(tmp_path / "x.rrd")]
-    r = run_module("datasets.view", str(seed_folder), *args)
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = run_module("datasets.view", str(seed_folder), *args, env=env)
     assert r.returncode == 2 and says in r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert not list(tmp_path.rglob("*.rrd")) and not list(seed_folder.glob("*.rrd"))
