@@ -72,7 +72,7 @@ class TrackWriter:
         obj = f.create_group("objects")
         dataset(obj, "names", np.array(dynamic_names, dtype=object))  # fixed-length UTF-8 bytes
         d = len(dynamic_names)
-        obj.create_dataset("world_from_object", (0, d, 4, 4), maxshape=(None, d, 4, 4), dtype="f8",
+        obj.create_dataset("world_from_object", (0, d, 4, 4), maxshape=(None, d or None, 4, 4), dtype="f8",  # d = 0: no objects
                            chunks=(16, max(d, 1), 4, 4), **CHECKSUM)
         vis = f.create_group("visibility")
         dataset(vis, "offsets", np.zeros(1, np.int64), maxshape=(None,), chunks=(1024,))
@@ -82,7 +82,7 @@ class TrackWriter:
         self.dyn_ids = np.flatnonzero(np.asarray(table["dynamic_object"]) >= 0).astype(np.int32)
         dyn = f.create_group("dynamic")
         dataset(dyn, "point_ids", self.dyn_ids)
-        dyn.create_dataset("positions", (0, len(self.dyn_ids), 3), maxshape=(None, len(self.dyn_ids), 3), dtype="f4",
+        dyn.create_dataset("positions", (0, len(self.dyn_ids), 3), maxshape=(None, len(self.dyn_ids) or None, 3), dtype="f4",
                            chunks=(1, max(len(self.dyn_ids), 1), 3), **opts, **CHECKSUM)
         f.create_dataset("coverage", (0,), maxshape=(None,), dtype="f8", chunks=(1024,), **CHECKSUM)
 
