@@ -64,7 +64,7 @@ def run(args) -> Path | None:
     from datasets import DatasetError, Scene
 
     from .viewer.common import APPLICATION_ID, recording_file
-    from .viewer.seed import blueprint, record_scene
+    from .viewer.seed import blueprint, frame_rate, record_scene
 
     try:
         scene = Scene(args.seed)
@@ -87,15 +87,19 @@ def run(args) -> Path | None:
 
     recording_id = f"seed_{scene.seed:06d}"
     try:
+        layout = blueprint(kinds, frame_rate(scene[kinds[0]]))
+    except DatasetError as exc:
+        raise ViewError(str(exc)) from None
+    try:
         if args.spawn:
             import rerun as rr
 
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-            rec.spawn(default_blueprint=blueprint(kinds))
+            rec.spawn(default_blueprint=layout)
             record_scene(rec, scene, kinds, args.max_points, progress)
             rec.flush()
             return None
-        with recording_file(out, recording_id, blueprint(kinds)) as rec:
+        with recording_file(out, recording_id, layout) as rec:
             record_scene(rec, scene, kinds, args.max_points, progress)
     except DatasetError as exc:
         raise ViewError(str(exc)) from None

@@ -11,9 +11,9 @@ def record_seed(seed_folder, out, trajectories=None, max_points: int = MAX_POINT
     from datasets import Scene
 
     from .common import recording_file
-    from .seed import blueprint, record_scene
+    from .seed import blueprint, frame_rate, record_scene
 
     scene = Scene(seed_folder)
     kinds = trajectories or scene.trajectories
-    with recording_file(out, f"seed_{scene.seed:06d}", blueprint(kinds)) as rec:
+    with recording_file(out, f"seed_{scene.seed:06d}", blueprint(kinds, frame_rate(scene[kinds[0]]))) as rec:
         return record_scene(rec, scene, kinds, max_points, progress)

@@ -43,9 +43,10 @@ def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: 
     return counts
 
 
-def blueprint(kinds: list[str]):
-    """The default layout: the site in 3D; per trajectory its RGB with the tracks, labels and
-    depth; the coverage curves."""
+def blueprint(kinds: list[str], fps: float | None = None):
+    """The default layout: the site in 3D (the cameras show their RGB; depth, labels and
+    instances only in 2D); per trajectory its RGB with the tracks, labels and depth; the
+    coverage curves; the time panel on the frame timeline, played at ``fps`` (frames per second)."""
     import rerun.blueprint as rrb
 
     def camera_view(kind: str, name: str, contents: list[str]):
@@ -54,10 +55,18 @@ def blueprint(kinds: list[str]):
 
     rows = [rrb.Horizontal(camera_view(kind, "RGB + tracks", ["rgb", "tracks"]), camera_view(kind, "labels", ["label"]),
                            camera_view(kind, "depth", ["depth"])) for kind in kinds]
-    return rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(name="site", origin="world"),
-                                        rrb.Vertical(*rows, rrb.TimeSeriesView(name="coverage", origin="coverage")),
+    site = rrb.Spatial3DView(name="site", origin="world", contents=["$origin/**"] + [
+        f"- $origin/{kind}/camera/{image}" for kind in kinds for image in ("depth", "label", "instance")])
+    return rrb.Blueprint(rrb.Horizontal(site, rrb.Vertical(*rows, rrb.TimeSeriesView(name="coverage", origin="coverage")),
                                         column_shares=[3, 2]),
-                         rrb.SelectionPanel(expanded=False), rrb.BlueprintPanel(expanded=False))
+                         rrb.SelectionPanel(state="collapsed"), rrb.BlueprintPanel(state="collapsed"),
+                         rrb.TimePanel(timeline=FRAME_TIMELINE, fps=fps, state="collapsed"))
+
+
+def frame_rate(seq: Sequence) -> float | None:
+    """Frames per second of a trajectory, from its timestamps (None with fewer than 2 frames)."""
+    steps = np.diff(seq.timestamps)
+    return float(1.0 / np.median(steps)) if len(steps) and np.median(steps) > 0 else None
 
 
 def log_cloud(rec, scene: Scene, max_points: int) -> int:
