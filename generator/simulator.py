@@ -232,7 +232,6 @@ class Simulator(PaperAPI):
         return np.stack([p.matrix for p in self._parts if p.dynamic]) if self.dynamic_objects else np.zeros((0, 4, 4))
 
     @property
-    @property
     def observable_points_mask(self) -> np.ndarray:
         """(N,) bool: the point is visible from at least one of the observability viewpoints
         (spawn points) in some direction, with no depth limit, dynamic objects at the first
@@ -248,6 +247,7 @@ class Simulator(PaperAPI):
                 self.set_frame(frame)
         return self._observable.copy()
 
+    @property
     def coverage(self) -> float:
         """Share of all surface points observed at least once (0 to 1)."""
         n = len(self.observed_points_mask)
