@@ -81,10 +81,7 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
         start, (lo, hi) = site_start(plan)
         if not sim.is_free(start[:3, 3]):
             raise RuntimeError(f"seed {seed}: the entrance start pose {start[:3, 3]} is not free of geometry")
-        subsets = {"all": np.ones(sim.num_points, dtype=bool)}
-        observable = getattr(sim, "observable_points_mask", None)  # the observability estimate, where available
-        if observable is not None:
-            subsets["observable"] = np.asarray(observable, dtype=bool)
+        subsets = {"all": np.ones(sim.num_points, dtype=bool), "observable": sim.observable_points_mask}
         t_ready = time.perf_counter()
         checker = BoundedChecker(sim, lo, hi)
         curves = {m: {k: [] for k in subsets} for m in METHODS}
@@ -109,11 +106,10 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
             entry[m] = _summary([coverage_auc(c) for c in curves[m]["all"]]) | {
                 "final_coverage_mean": float(np.mean([c[-1] for c in curves[m]["all"]])),
                 "paper_auc": PAPER_TABLE2.get(seed, {}).get(m)}
-            if "observable" in subsets:
-                entry[m]["observable"] = _summary([coverage_auc(c) for c in curves[m]["observable"]]) | {
-                    "final_coverage_mean": float(np.mean([c[-1] for c in curves[m]["observable"]]))}
+            entry[m]["observable"] = _summary([coverage_auc(c) for c in curves[m]["observable"]]) | {
+                "final_coverage_mean": float(np.mean([c[-1] for c in curves[m]["observable"]]))}
         entry |= {"points": sim.num_points, "start_pose": start.tolist(),
-                  "observable_points": int(subsets["observable"].sum()) if "observable" in subsets else None,
+                  "observable_points": int(subsets["observable"].sum()),
                   "seconds": time.perf_counter() - t0, "seconds_walks": time.perf_counter() - t_ready}
         results["seeds"][str(seed)] = entry
     bar.close()
@@ -128,8 +124,7 @@ def table(results: dict) -> str:
              "paper: random | paper: modified |", "|---|---|---|---|---|---|---|"]
     for seed, r in results["seeds"].items():
         cells = [f"{r[m]['auc_mean']:.3f} ± {r[m]['auc_std']:.3f}" for m in METHODS]
-        cells += [f"{r[m]['observable']['auc_mean']:.3f} ± {r[m]['observable']['auc_std']:.3f}" if "observable" in r[m]
-                  else "-" for m in METHODS]
+        cells += [f"{r[m]['observable']['auc_mean']:.3f} ± {r[m]['observable']['auc_std']:.3f}" for m in METHODS]
         paper = [r[m]["paper_auc"] for m in METHODS]
         cells += [f"{p[0]:.2f} ± {p[1]:.2f}" if p else "-" for p in paper]
         lines.append(f"| {seed} | " + " | ".join(cells) + " |")
