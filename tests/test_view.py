@@ -194,3 +194,12 @@ def test_bad_arguments_are_one_line_and_exit_2(seed_folder, tmp_path, args, says
     assert r.returncode == 2 and says in r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert not list(tmp_path.rglob("*.rrd")) and not list(seed_folder.glob("*.rrd"))
+
+
+def test_evaluation_rrd_inside_the_seed_folder_is_refused(seed_folder, tmp_path):
+    ply = read_ply(seed_folder / "ground_truth" / "points.ply")
+    np.save(tmp_path / "pred.npy", np.stack([ply.vertex[c] for c in "xyz"], 1)[:100])
+    r = run_module("evaluation", "reconstruction", "--gt", str(seed_folder), "--pred", str(tmp_path / "pred.npy"),
+                   "--rrd", str(seed_folder / "result.rrd"))
+    assert r.returncode == 2 and "--rrd" in r.stderr and r.stderr.count("\n") == 1
+    assert not (seed_folder / "result.rrd").exists()
