@@ -22,8 +22,8 @@ import numpy as np
 LIBVER = ("v110", "v110")  # HDF5 >= 1.10 reads these files (h5py >= 2.10)
 CHECKSUM = {"fletcher32": True}
 H5_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError)
-REMEDY = ("regenerate this seed with python -m generator (run python -m generator verify on the output "
-          "folder to list every damaged file)")
+REMEDY = ("regenerate this seed: rerun python -m generator with its options and --verify --repair "
+          "(python -m generator verify DIR lists every damaged file)")
 
 
 class DamagedFileError(ValueError):

@@ -161,6 +161,8 @@ def read_ply(path: str | Path) -> PlyData:
     vertex = data["vertex"]
     if not all(c in vertex for c in "xyz"):
         raise PlyError(f"{path}: vertices need x, y and z properties")
+    if not all(isinstance(vertex[c], np.ndarray) and vertex[c].ndim == 1 for c in "xyz"):
+        raise PlyError(f"{path}: vertex x, y and z must be single numbers, not lists")
     faces, face = None, {}
     if "face" in data:
         face = data["face"]
