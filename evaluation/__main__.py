@@ -99,6 +99,8 @@ def check_outputs(args) -> None:
         seen[real] = flag
         if path.is_dir():
             raise InputError(f"{flag} {path}: is a folder; name a file to write")
+        if path.exists() and not path.is_file():  # a device (/dev/null), pipe or socket: never replaced
+            raise InputError(f"{flag} {path}: not a regular file (a device, pipe or socket); name a file to write")
         if real in protected_files or (path.exists() and any(path.samefile(p) for p in files)):
             raise InputError(f"{flag} {path}: is an input of this run; write the output elsewhere")
         for folder in (real.parent, *real.parent.parents):

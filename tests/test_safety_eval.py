@@ -94,6 +94,7 @@ def test_outputs_never_land_on_inputs_or_in_the_ground_truth(seed_folder, perfec
         (rec + ["--json", tmp_path / "a.out", "--ply", tmp_path / "a.out"], "the same file as"),
         (rec + ["--json", tmp_path], "is a folder"),
         (rec + ["--ply", "/proc/fig9.ply"], "cannot write in /proc"),
+        (rec + ["--json", "/dev/null"], "not a regular file"),  # as root, a rename would replace the device
         (rec + ["--json", tmp_path / "missing" / "r.json"], "does not exist"),
         (["coverage", "--gt", seed_folder, "--trajectory", seed_folder / "orbit" / "sparse" / "0", "--plot",
           seed_folder / "orbit" / "sparse" / "0" / "c.png"], "outputs never go into"),
@@ -286,6 +287,10 @@ def test_hostile_inputs_one_line_exit_2(seed_folder, perfect_tracks, tmp_path):
     (t / "endless.ply").write_bytes(b"ply\nformat ascii 1.0\ncomment " + b"x" * (3 << 20) + b"\n")
     os.mkfifo(t / "pipe.ply")  # reading it would block forever
     (t / "dangling.ply").symlink_to(t / "nowhere.ply")
+    (t / "list_x.ply").write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\n"
+                                  "property float y\nproperty float z\nend_header\n2 1 2 3 4\n")
+    os.mkfifo(t / "pipe.npz")
+    np.save(t / "far_one.npy", np.vstack([pts, [[1e5, 0, 0]]]))
     tv = read_tracks(seed_folder / "orbit" / "tracks.h5")["tapvid"]
     np.savez(t / "far_tracks.npz", tracks=np.full(tv["tracks"].shape, 1e160), occluded=np.zeros_like(tv["occluded"]))
     np.savez(t / "half_occluded.npz", tracks=tv["tracks"], occluded=np.full(tv["occluded"].shape, 0.5))
@@ -315,6 +320,10 @@ def test_hostile_inputs_one_line_exit_2(seed_folder, perfect_tracks, tmp_path):
         (rec + [t / "endless.ply"], "header"),
         (rec + [t / "pipe.ply"], "not a regular file"),
         (rec + [t / "dangling.ply"], "broken symbolic link"),
+        (rec + [t / "list_x.ply"], "not lists"),
+        (rec + [t / "far_one.npy", "--voxel", "1e-12"], "voxel 1e-12 m is too small"),
+        (["coverage", "--gt", seed_folder, "--trajectory", t / "pipe.npz"], "not a regular file"),
+        (trk + [t / "pipe.npz"], "not a regular file"),
         (rec + [perfect_tracks, "--json", t], "is a folder"),
         (rec + [perfect_tracks, "--ply", "/proc/x.ply"], "cannot write"),
         (["coverage", "--gt", seed_folder, "--trajectory", t / "images_trunc"], "images.bin: damaged"),
