@@ -13,8 +13,8 @@ from exporters.manifest import read_manifest
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
 from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
-from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, match_categories, reconstruction_metrics,
-                      voxel_downsample)
+from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, fscore, iou_per_class, match_categories,
+                      reconstruction_metrics, voxel_downsample)
 
 
 def versions() -> dict:
@@ -105,14 +105,22 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
             raise InputError(f"{pred_cloud.source}: no predicted point lies within the ground truth's bounds "
                              f"(+{margin} m); check the coordinate frame (world, metres, Z up)")
     if voxel:
+        extent = max(np.abs(pred_cloud.points).max(), np.abs(gt_cloud.points).max())
+        if extent / voxel >= 2 ** 52:  # voxel indices must stay exact integers
+            raise InputError(f"voxel {voxel} m is too small for coordinates up to {extent:.3g} m; use a larger voxel")
         p, pl = voxel_downsample(pred_cloud.points, pred_cloud.labels, voxel)
         g, gl = voxel_downsample(gt_cloud.points, gt_cloud.labels, voxel)
-        pred_cloud, gt_cloud = Cloud(p, pl, pred_cloud.source), Cloud(g, gl, gt_cloud.source)
+        go = None
+        if gt_cloud.observable is not None:  # a voxel is observable when most of its points are
+            go = voxel_downsample(gt_cloud.points, gt_cloud.observable.astype(np.int64), voxel)[1].astype(bool)
+        pred_cloud, gt_cloud = Cloud(p, pl, pred_cloud.source), Cloud(g, gl, gt_cloud.source, observable=go)
     labelled = pred_cloud.labels is not None and gt_cloud.labels is not None
     t0 = time.perf_counter()
     nn = Neighbours.compute(pred_cloud.points, gt_cloud.points)
     metrics = reconstruction_metrics(pred_cloud.points, gt_cloud.points, pred_cloud.labels if labelled else None,
                                      gt_cloud.labels if labelled else None, tau, tuple(sweep), names, neighbours=nn)
+    metrics["observable"] = observable_metrics(metrics, nn, gt_cloud.observable, pred_cloud.labels if labelled else None,
+                                               gt_cloud.labels if labelled else None, tau, names)
     seconds = time.perf_counter() - t0
     results = {
         "task": "reconstruction",
@@ -130,6 +138,47 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
     }
     match = match_categories(pred_cloud.labels, gt_cloud.labels, nn.d_gp, nn.i_gp, tau)
     return results, {"pred": pred_cloud, "gt": gt_cloud, "names": names, "match": match}
+
+
+NO_OBSERVABLE_MASK = ("this ground truth has no observable mask (written before format 0.4, or not our "
+                      "ground truth); regenerate the seed for the observable-only figures")
+
+
+def observable_metrics(metrics: dict, nn: Neighbours, observable: np.ndarray | None, pred_labels: np.ndarray | None,
+                       gt_labels: np.ndarray | None, tau: float, names: list[str]) -> dict:
+    """The figures of :func:`reconstruction_metrics` that divide by the ground truth,
+    recomputed over the GT points marked observable (``observable`` (M,) bool): completeness,
+    Chamfer-L1/L2 (with the full accuracy), recall and F-score (with the full precision) at
+    tau and over the sweep, GT->pred Semantic Chamfer and mIoU on GT points. Figures over
+    predicted points do not change. ``{"available": False, "note": ...}`` without a mask."""
+    if observable is None:
+        return {"available": False, "note": NO_OBSERVABLE_MASK}
+    obs = np.asarray(observable, bool)
+    n = int(obs.sum())
+    out: dict = {"available": True, "gt_points": n, "share_of_gt": n / len(obs) if len(obs) else 0.0}
+    if n == 0:
+        return out | {"note": "no ground-truth point is observable"}
+    d = nn.d_gp[obs]
+    completeness = float(d.mean())
+    recall = float(np.count_nonzero(d < tau) / n)
+    out |= {"completeness": completeness, "chamfer_l1": (metrics["accuracy"] + completeness) / 2,
+            "chamfer_l2": float((np.mean(nn.d_pg ** 2) + np.mean(d ** 2)) / 2),
+            "recall": recall, "fscore": fscore(metrics["precision"], recall)}
+    s = np.sort(d)
+    out["sweep"] = [{"tau": e["tau"], "recall": float(np.searchsorted(s, e["tau"], side="left") / n),
+                     "fscore": fscore(e["precision"], float(np.searchsorted(s, e["tau"], side="left") / n))}
+                    for e in metrics["sweep"]]
+    if pred_labels is not None and gt_labels is not None:
+        g, i = np.asarray(gt_labels)[obs], nn.i_gp[obs]
+        close = d < tau
+        transferred = np.where(close, pred_labels[i], -1)
+        iou, union = iou_per_class(g, transferred, len(names))
+        present = union > 0
+        out["semantic"] = {
+            "semantic_chamfer_gt_to_pred": float(np.count_nonzero(close & (g == pred_labels[i]) & (g >= 0)) / n),
+            "miou": float(np.mean(iou[present])) if present.any() else 0.0,
+            "iou": {names[c]: float(iou[c]) for c in np.flatnonzero(present)}}
+    return out
 
 
 MATCH_COLOURS = np.array([[40, 90, 220], [245, 150, 30], [220, 30, 30]], np.uint8)  # matched, wrong label, unmatched
@@ -174,7 +223,7 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
         clamped = int(np.count_nonzero((poses.frames < scene.frames[0]) | (poses.frames > scene.frames[-1])))
     t0 = time.perf_counter()
     scorer = CoverageScorer(scene)
-    curve, observed = scorer.curve(poses, progress)
+    curve, curve_obs, observed = scorer.curves(poses, progress)
     seconds = time.perf_counter() - t0
     return {
         "task": "coverage",
@@ -187,6 +236,11 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
                                   "height": scene.height if poses.height is None else poses.height}},
         "num_poses": len(curve), "num_points": int(len(observed)),
         "coverage": curve.tolist(), "auc": coverage_auc(curve), "final_coverage": float(curve[-1]),
+        "observable": ({"available": False, "note": NO_OBSERVABLE_MASK} if curve_obs is None else
+                       {"available": True, "num_points": int(scorer.observable.sum()),
+                        "share_of_points": float(scorer.observable.mean()) if len(observed) else 0.0,
+                        "coverage": curve_obs.tolist(), "auc": coverage_auc(curve_obs),
+                        "final_coverage": float(curve_obs[-1])}),
         "units": "coverage: share of ground-truth surface points observed at least once (0..1); "
                  "AUC over an x-axis normalised to [0, 1] across all poses",
         "versions": versions(), "seconds": seconds, "poses_per_second": len(curve) / seconds if seconds else None,

@@ -2,7 +2,8 @@
 observes, recomputed from ``ground_truth/scene.h5`` with the simulator's visibility rules
 (``generator.geometry.visibility``), with no bpy.
 
-coverage(t) = share of the scene's surface points observed at least once by poses 0..t;
+coverage(t) = share of the scene's surface points observed at least once by poses 0..t
+(also over the points marked observable, when the ground truth has the mask);
 AUC = trapezoid of coverage over an x-axis normalised to [0, 1] across all poses (the
 initial pose included).
 """
@@ -19,7 +20,7 @@ from generator.geometry.raycast import SceneGeometry
 from generator.geometry.surface_points import SurfacePoints
 from generator.geometry.visibility import ViewLimits, visible_points
 
-from .inputs import InputError, check_poses, check_timestamps
+from .inputs import InputError, check_poses, check_timestamps, regular_file
 
 
 @dataclass
@@ -84,19 +85,36 @@ class CoverageScorer:
                               np.asarray(world_from_camera, np.float64), np.asarray(K, np.float64), int(width),
                               int(height), ViewLimits(self.scene.near, self.scene.far))
 
+    @property
+    def observable(self) -> np.ndarray | None:
+        """(N,) bool mask of the observable surface points, None if the ground truth has none."""
+        obs = self.scene.surface.get("observable")
+        return None if obs is None else np.asarray(obs, bool)
+
     def curve(self, poses: Poses, progress=None) -> tuple[np.ndarray, np.ndarray]:
         """Coverage after each pose (T,) and the observed mask (N,)."""
+        out, _, observed = self.curves(poses, progress)
+        return out, observed
+
+    def curves(self, poses: Poses, progress=None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """Coverage after each pose (T,) over all surface points and over the observable ones
+        (None without a mask), and the observed mask (N,)."""
         K = self.scene.K if poses.K is None else poses.K
         w = self.scene.width if poses.width is None else poses.width
         h = self.scene.height if poses.height is None else poses.height
         observed = np.zeros(len(self.points), bool)
+        obs = self.observable
         out = np.empty(len(poses.world_from_camera))
+        out_obs = None if obs is None else np.empty(len(out))
+        n_obs = 0 if obs is None else int(obs.sum())
         it = range(len(out)) if progress is None else progress(range(len(out)))
         for t in it:
             frame = None if poses.frames is None else int(poses.frames[t])
             observed |= self.visible(poses.world_from_camera[t], K, w, h, frame)
             out[t] = observed.mean() if len(observed) else 0.0
-        return out, observed
+            if out_obs is not None:
+                out_obs[t] = np.count_nonzero(observed & obs) / n_obs if n_obs else 0.0
+        return out, out_obs, observed
 
 
 def read_poses(path: str | Path, scene: GroundTruthScene, frames: str = "auto") -> Poses:
@@ -109,8 +127,9 @@ def read_poses(path: str | Path, scene: GroundTruthScene, frames: str = "auto") 
         raise InputError(f"--frames must be auto, timestamps or first, got {frames!r}")
     if path.is_dir():
         return _read_colmap(path, frames)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such file or folder")
+    regular_file(path, "trajectory .npz")  # not a pipe or a device (reading one could block)
     from trajectories.base import Trajectory, TrajectoryError
 
     try:

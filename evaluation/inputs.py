@@ -36,13 +36,16 @@ def regular_file(path: str | Path, what: str = "input") -> Path:
 class Cloud:
     """``points`` (N, 3) float64 metres; ``labels`` (N,) int64 label ids or None;
     ``names``: the label table the file states (a PLY ``comment labels [...]``), if any;
-    ``dynamic`` (N,) bool: on a moving object (our ground-truth PLY), if known."""
+    ``dynamic`` (N,) bool: on a moving object (our ground-truth PLY), if known;
+    ``observable`` (N,) bool: some camera of the spawn volume can see it (our ground-truth
+    PLY from format 0.4), if known."""
 
     points: np.ndarray
     labels: np.ndarray | None
     source: str
     names: list[str] | None = None
     dynamic: np.ndarray | None = None
+    observable: np.ndarray | None = None
 
     def __post_init__(self):
         """Refuse what cannot be scored exactly: not (N, 3) real numbers, NaN/inf or absurd
@@ -58,7 +61,7 @@ class Cloud:
         if p.size and np.abs(p).max() > MAX_COORDINATE:
             raise InputError(f"{self.source}: a coordinate is {np.abs(p).max():.3g} m from the origin (limit "
                              f"{MAX_COORDINATE:.0e} m); give metres in the ground truth's world frame")
-        for name in ("labels", "dynamic"):
+        for name in ("labels", "dynamic", "observable"):
             value = getattr(self, name)
             if value is None:
                 continue
@@ -76,7 +79,8 @@ class Cloud:
     def subset(self, keep: np.ndarray) -> "Cloud":
         """The points selected by a boolean mask or index array."""
         pick = (lambda a: None if a is None else a[keep])
-        return Cloud(self.points[keep], pick(self.labels), self.source, self.names, pick(self.dynamic))
+        return Cloud(self.points[keep], pick(self.labels), self.source, self.names, pick(self.dynamic),
+                     pick(self.observable))
 
 
 CLOUD_SUFFIXES = (".ply", ".npy", ".npz", ".txt", ".xyz", ".csv", ".pts")
@@ -130,7 +134,8 @@ def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, list[str
             if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
                 raise InputError(f"{path}: its header's label table is not a list of class names")
     dynamic = d.vertex["dynamic"].astype(bool) if "dynamic" in d.vertex else None
-    return d.points, label, names, dynamic
+    observable = d.vertex["observable"].astype(bool) if "observable" in d.vertex else None
+    return d.points, label, names, dynamic, observable
 
 
 def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_names: list[str] | None = None) -> Cloud:
@@ -140,10 +145,10 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
     point (text or NPY); labels may be ids or, with ``label_names``, class names."""
     path = regular_file(path, "point cloud (PLY, NPY, NPZ or text)")
     suffix = path.suffix.lower()
-    labels = file_names = dynamic = None
+    labels = file_names = dynamic = observable = None
     try:
         if suffix == ".ply":
-            points, labels, file_names, dynamic = _read_ply_cloud(path)
+            points, labels, file_names, dynamic, observable = _read_ply_cloud(path)
         elif suffix == ".npy":
             points, labels = _split_columns(_npy(path), path)
         elif suffix == ".npz":
@@ -185,7 +190,7 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
             raise InputError(f"{labels_path}: {len(labels)} labels for {len(points)} points; give one label per point")
     if labels is not None:
         labels = _label_ids(np.asarray(labels), label_names or file_names, path if labels_path is None else Path(labels_path))
-    return Cloud(points, labels, str(path), file_names, dynamic)
+    return Cloud(points, labels, str(path), file_names, dynamic, observable)
 
 
 def _npy(path: Path) -> np.ndarray:

@@ -13,31 +13,50 @@ from PIL import Image, ImageDraw
 
 def reconstruction_table(results: dict) -> str:
     m, p = results["metrics"], results["parameters"]
+    o = m.get("observable") or {"available": False, "note": "no observable-only figures in these results"}
+    has = o.get("available", False) and "completeness" in o
     lines = [f"reconstruction: {results['inputs']['pred_points_scored']:,} predicted vs "
              f"{results['inputs']['gt_points_scored']:,} ground-truth points, tau = {p['tau']} m"
              + (f", voxel {p['voxel']} m" if p["voxel"] else "") + (", cropped to GT bounds" if p["crop"] else ""),
-             "", f"{'metric':<42}{'value':>12}  unit"]
+             "", f"{'metric':<42}{'all GT':>12}{'observable':>12}  unit"]
 
-    def row(name, value, unit=""):
-        lines.append(f"{name:<42}{value:>12.4f}  {unit}")
+    def row(name, value, unit="", observable=None):
+        obs = f"{observable:>12.4f}" if observable is not None else f"{'':>12}"
+        lines.append(f"{name:<42}{value:>12.4f}{obs}  {unit}")
+
+    def ob(key, group=None):
+        if not has:
+            return None
+        src = o.get(group) if group else o
+        return None if src is None else src.get(key)
 
     row("accuracy (pred -> GT, mean)", m["accuracy"], "m")
-    row("completeness (GT -> pred, mean)", m["completeness"], "m")
-    row("Chamfer-L1 (mean of both)", m["chamfer_l1"], "m")
-    row("Chamfer-L2 (mean of both, squared)", m["chamfer_l2"], "m^2")
+    row("completeness (GT -> pred, mean)", m["completeness"], "m", ob("completeness"))
+    row("Chamfer-L1 (mean of both)", m["chamfer_l1"], "m", ob("chamfer_l1"))
+    row("Chamfer-L2 (mean of both, squared)", m["chamfer_l2"], "m^2", ob("chamfer_l2"))
     row(f"precision @ {p['tau']} m", m["precision"])
-    row(f"recall @ {p['tau']} m", m["recall"])
-    row(f"F-score @ {p['tau']} m", m["fscore"])
+    row(f"recall @ {p['tau']} m", m["recall"], "", ob("recall"))
+    row(f"F-score @ {p['tau']} m", m["fscore"], "", ob("fscore"))
     if "semantic" in m:
         s = m["semantic"]
         row("Semantic Chamfer pred -> GT", s["semantic_chamfer_pred_to_gt"])
-        row("Semantic Chamfer GT -> pred", s["semantic_chamfer_gt_to_pred"])
-        row("mIoU (on GT points)", s["miou"])
+        row("Semantic Chamfer GT -> pred", s["semantic_chamfer_gt_to_pred"], "", ob("semantic_chamfer_gt_to_pred", "semantic"))
+        row("mIoU (on GT points)", s["miou"], "", ob("miou", "semantic"))
         row("mIoU (paper: on pred points within tau)", s["miou_paper"])
         if s["classes_missing_from_pred"]:
             lines.append(f"classes missing from the prediction: {', '.join(s['classes_missing_from_pred'])}")
-    lines += ["", "sweep:   tau    precision  recall  F-score"]
-    lines += [f"       {e['tau']:>6.3f}   {e['precision']:>7.4f}  {e['recall']:>6.4f}  {e['fscore']:>7.4f}" for e in m["sweep"]]
+    if has:
+        lines.append(f"observable: {o['gt_points']:,} of the ground-truth points ({o['share_of_gt']:.1%}) can be seen "
+                     "from the camera spawn volume; figures over predicted points are the same for both")
+    else:
+        lines.append(f"observable: not available ({o.get('note', 'no mask')})")
+    sweep_obs = o.get("sweep") if has else None
+    lines += ["", "sweep:   tau    precision  recall  F-score" + ("   recall (obs)  F-score (obs)" if sweep_obs else "")]
+    for k, e in enumerate(m["sweep"]):
+        line = f"       {e['tau']:>6.3f}   {e['precision']:>7.4f}  {e['recall']:>6.4f}  {e['fscore']:>7.4f}"
+        if sweep_obs:
+            line += f"   {sweep_obs[k]['recall']:>12.4f}  {sweep_obs[k]['fscore']:>13.4f}"
+        lines.append(line)
     if "paper" in m:
         lines += ["", "paper-compatible (one direction, Manhattan norm):",
                   f"  Chamfer-L1 pred -> GT {m['paper']['chamfer_l1_manhattan_pred_to_gt']:.4f} m, "
@@ -50,13 +69,23 @@ def reconstruction_table(results: dict) -> str:
 def coverage_table(results: dict) -> str:
     c = results["coverage"]
     marks = sorted({0, len(c) // 4, len(c) // 2, 3 * len(c) // 4, len(c) - 1})
+    o = results.get("observable") or {"available": False, "note": "no observable-only figures in these results"}
+    if o.get("available"):
+        co = o["coverage"]
+        obs_lines = [f"  over the {o['num_points']:,} observable points ({o['share_of_points']:.1%}, seen from "
+                     "some point of the spawn volume):",
+                     f"  AUC            {o['auc']:.4f}",
+                     f"  final coverage {o['final_coverage']:.4f}",
+                     "  curve          " + ", ".join(f"pose {i}: {co[i]:.4f}" for i in marks)]
+    else:
+        obs_lines = [f"  observable-only coverage: not available ({o.get('note', 'no mask')})"]
     return "\n".join([
         f"coverage: {results['num_poses']} poses, {results['num_points']:,} ground-truth surface points, "
         f"visible within {results['parameters']['far']:g} m (planar depth)",
         f"  AUC            {results['auc']:.4f}",
         f"  final coverage {results['final_coverage']:.4f}",
         "  curve          " + ", ".join(f"pose {i}: {c[i]:.4f}" for i in marks),
-    ] + ([f"  note: {results['parameters']['poses_outside_the_animation']} poses fall after the recorded animation "
+    ] + obs_lines + ([f"  note: {results['parameters']['poses_outside_the_animation']} poses fall after the recorded animation "
           "and see its last frame (use --frames first for a static scene)"]
          if results["parameters"].get("poses_outside_the_animation") else []))
 

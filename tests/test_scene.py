@@ -134,6 +134,38 @@ def test_objects_rest_on_ground_and_do_not_intersect(small_site):
     assert checked > 0
 
 
+def test_surface_points_lie_on_surfaces_cameras_can_reach(small_site):
+    """The ground is one flat top surface; no surface point lies below it (beyond 5 cm) or
+    on a face resting on it, in the Simulator's points and in the scoring cloud."""
+    from exporters.ground_truth import sample_scoring_points
+    from generator.geometry.sampling import CONTACT_TOLERANCE, contact_faces, ground_height
+
+    sim = Simulator(small_site.blend, points_density=5.0)
+    parts = sim.scene_parts()
+    ground = [p for p in parts if p.label == "Ground"]
+    assert len(ground) == 1 and not ground[0].closed and len(ground[0].faces) == 2
+    assert np.all(ground[0].vertices[:, 2] == 0.0) and ground_height(parts) == 0.0
+    # the faces the rule drops exist (bottoms of props), and face straight down at z = 0
+    dropped = {p.label: int(contact_faces(p, 0.0).sum()) for p in parts}
+    assert sum(dropped.values()) > 20 and dropped["Ground"] == 0
+    assert {"Container", "Cabin"} & {k for k, v in dropped.items() if v}
+    pts, labels, _ = sim.compute_point_cloud(update_mask=False)
+    normals = sim.surface_sample()["local_normals"]  # static parts: world frame
+    static = ~sim.dynamic_points_mask
+    scoring = sample_scoring_points(parts, sim.label_ids, 20.0, 0)
+    for xyz, nrm, on_ground in ((pts[static], normals[static], labels[static] == sim.label_ids["Ground"]),
+                                (scoring["xyz"], scoring["normals"], scoring["label"] == sim.label_ids["Ground"])):
+        assert xyz[:, 2].min() >= -0.05
+        low = (xyz[:, 2] <= CONTACT_TOLERANCE) & ~on_ground
+        assert not np.any(low & (nrm[:, 2] < -0.99)), "points on a face resting on the ground"
+        assert on_ground.sum() > 0.3 * len(xyz) and np.all(xyz[on_ground, 2] == 0.0)
+    # negative control: without the rule, the same sampling puts points on those faces
+    bottoms = [p for p in parts if contact_faces(p, 0.0).any()]
+    raw, _ = sample_triangles(bottoms[0].vertices, bottoms[0].faces[contact_faces(bottoms[0], 0.0)], 50.0,
+                              np.random.default_rng(0))
+    assert len(raw) > 0 and np.all(np.abs(raw[:, 2]) <= CONTACT_TOLERANCE)
+
+
 def _touches(a: MeshPart, b: MeshPart, rng) -> bool | None:
     """True if surface samples of ``a`` near ``b`` come within 1 mm of ``b`` or lie inside
     it; None if their bounding boxes are apart (nothing to check)."""
