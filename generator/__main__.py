@@ -54,7 +54,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="Cycles device: cpu, gpu (a CUDA/OptiX GPU; an error without one) or auto (a GPU when "
                         f"there is one, else the CPU; default: {DEFAULTS.device})")
     p.add_argument("--resolution", type=resolution, default=DEFAULTS.resolution,
-                   help="image size WxH in pixels, sides 4 to 16384, at most 7680x4320 pixels (default: 640x480)")
+                   help="image size WxH in pixels, sides 4 to 16384, at most 3840x2160 pixels (default: 640x480)")
     p.add_argument("--frames", type=int_at_least(2, "frames", MAX_FRAMES), default=DEFAULTS.frames,
                    help=f"frames per trajectory, 2 to {MAX_FRAMES}, at 10 frames per second of scene time "
                         f"(default: {DEFAULTS.frames})")

@@ -183,7 +183,7 @@ def test_killed_run_resumes(tmp_path):
         (["--resolution", "3x2"], "each side must be 4 to 16384 pixels"),
         (["--resolution", "70000x4"], "each side must be 4 to 16384 pixels"),
         (["--resolution", "100000x100000"], "each side must be 4 to 16384 pixels"),
-        (["--resolution", "16384x16384"], "the limit is 33,177,600"),
+        (["--resolution", "4000x2200"], "the limit is 8,294,400"),
         (["--frames", "100000"], "frames must be an integer from 2 to 10000"),
         (["--scoring-density", "1e7"], "--scoring-density 1e+07: a small site has more than 2,500 m^2"),
         (["--points-density", "1e5"], "--points-density 100000: a small site"),

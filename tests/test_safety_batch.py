@@ -162,6 +162,23 @@ def test_repair_redoes_a_corrupted_seed(tmp_path, finished):
     assert not list(tmp_path.glob(".seed_*"))
 
 
+def test_interrupted_replacement_puts_the_old_seed_back(tmp_path, finished):
+    """Killed between the two renames of --overwrite: the old seed is aside, no seed folder.
+    The next run puts it back (it is never taken for debris)."""
+    from generator.batch.folders import partial_folder, replaced_folder
+
+    folder = _copy_seed(finished, tmp_path)
+    before = _snapshot(folder)
+    folder.rename(replaced_folder(tmp_path, 4))
+    partial_folder(tmp_path, 4).mkdir()
+    (partial_folder(tmp_path, 4) / PARTIAL_MARKER).write_text("{}")
+    r = run(tmp_path, *SEED4)
+    assert r.returncode == 0, r.stdout[-2000:]
+    assert "seed 4: the complete seed an interrupted replacement had set aside" in r.stdout
+    assert "seed 4: already complete" in r.stdout and _snapshot(folder) == before
+    assert not list(tmp_path.glob(".seed_*"))
+
+
 def test_verify_bad_input_and_clean(tmp_path, finished):
     folder = _copy_seed(finished, tmp_path / "data")
     assert _verify(tmp_path / "data").returncode == 0 and _verify(folder).returncode == 0

@@ -10,8 +10,8 @@ from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
 # Bounds on what a run accepts, checked before any work (docs/guarantees.md).
 MIN_SIDE = 4  # Blender renders sides below 4 pixels as 4 (measured: 3x2 gives a 4x4 image)
-MAX_SIDE = 16384  # Blender clamps above 65536; we stop well before memory does
-MAX_PIXELS = 7680 * 4320  # 33.2 million pixels per frame (8K UHD)
+MAX_SIDE = 16384  # Blender clamps above 65536
+MAX_PIXELS = 3840 * 2160  # 4K UHD: a render peaks at ~920 bytes a pixel (measured), ~7.6 GB here
 MAX_FRAMES = 10_000  # per trajectory; the site's animation set-up grows faster than linearly past this
 MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
 MAX_SCORING_POINTS = 50_000_000  # ground-truth cloud: ~57 bytes a point in memory, several copies at peak
@@ -45,7 +45,7 @@ class RunConfig:
             raise ValueError(f"resolution {w}x{h}: each side must be {MIN_SIDE} to {MAX_SIDE} pixels "
                              f"(Blender renders smaller sides as {MIN_SIDE})")
         if w * h > MAX_PIXELS:
-            raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (7680x4320)")
+            raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (3840x2160)")
         if not 2 <= self.frames <= MAX_FRAMES:
             raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
         area = site_area_lower_bound(self.scene_preset)

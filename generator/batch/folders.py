@@ -142,17 +142,39 @@ def start_partial(out: Path, seed: int) -> tuple[Path, str]:
     """A fresh, marked partial folder for ``seed`` (hold its lock): removes a partial folder
     of an earlier run if it carries our marker. Returns (folder, note); OSError if the
     partial folder's name is taken by something that is not ours."""
-    partial, note = partial_folder(out, seed), ""
-    if os.path.lexists(partial):
-        marker = partial / PARTIAL_MARKER
-        if partial.is_symlink() or not partial.is_dir() or marker.is_symlink() or not marker.is_file():
-            raise OSError(errno.EEXIST, f"{partial} exists and was not made by this tool; move it away")
-        shutil.rmtree(partial)
-        note = "unfinished output from an earlier run removed; redoing it"
+    partial = partial_folder(out, seed)
+    note = "unfinished output from an earlier run removed; redoing it" if drop_partial(out, seed) else ""
     _drop_replaced(out, seed)
     partial.mkdir()
     (partial / PARTIAL_MARKER).write_text(json.dumps({"seed": seed, "pid": os.getpid()}))
     return partial, note
+
+
+def drop_partial(out: Path, seed: int) -> bool:
+    """Hold the seed's lock. Remove an earlier run's partial folder of ``seed`` (True if there
+    was one); OSError if something not ours has its name."""
+    partial = partial_folder(out, seed)
+    if not os.path.lexists(partial):
+        return False
+    marker = partial / PARTIAL_MARKER
+    if partial.is_symlink() or not partial.is_dir() or marker.is_symlink() or not marker.is_file():
+        raise OSError(errno.EEXIST, f"{partial} exists and was not made by this tool; move it away")
+    shutil.rmtree(partial)
+    return True
+
+
+def restore_replaced(out: Path, seed: int) -> str:
+    """Hold the seed's lock. A replacement interrupted between its two renames left the old
+    complete seed aside and no seed folder: put it back. Returns a note ('' if nothing)."""
+    old, final = replaced_folder(out, seed), seed_folder(out, seed)
+    if os.path.lexists(final) or old.is_symlink() or not old.is_dir():
+        return ""
+    try:
+        load_manifest(old)
+    except ManifestError:
+        return ""
+    rename_no_replace(old, final)
+    return f"the complete seed an interrupted replacement had set aside ({old.name}) was put back"
 
 
 def _drop_replaced(out: Path, seed: int) -> None:

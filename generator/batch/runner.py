@@ -96,7 +96,10 @@ class _Worker:
         done = [e for e in self.events if e["event"] == "done"]
         try:
             if self.proc.returncode == 0 and done:
-                problem = folders.commit(self.out, self.seed, self.cfg.to_dict(), self.replace)
+                try:
+                    problem = folders.commit(self.out, self.seed, self.cfg.to_dict(), self.replace)
+                except OSError as exc:
+                    problem = f"{exc.filename or self.folder}: {exc.strerror}"
                 if not problem:
                     return SeedResult(self.seed, "done", "", done[0]["summary"], seconds)
                 return SeedResult(self.seed, "failed", f"not committed: {problem}", {}, seconds)
@@ -134,9 +137,21 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
         pid = folders.lock_holder(out, seed)
         return None, SeedResult(seed, "busy", f"being written by another run{f' (pid {pid})' if pid else ''}; "
                                               "skipped: rerun later, or add --wait"), None
-    d = folders.decide(out, seed, cfg.to_dict(), opts.overwrite, opts.repair, True if opts.hashes else None)
+    try:
+        restored = folders.restore_replaced(out, seed)
+        if restored:
+            tqdm.write(f"seed {seed}: {restored}")
+        d = folders.decide(out, seed, cfg.to_dict(), opts.overwrite, opts.repair, True if opts.hashes else None)
+    except OSError as exc:
+        lock.release()
+        return None, SeedResult(seed, "conflict", f"cannot check {exc.filename or out}: {exc.strerror}; left alone"), None
     if d.action == "run":
         return lock, None, d
+    if d.action == "skip":
+        try:
+            folders.drop_partial(out, seed)  # debris of an earlier run, if ours
+        except OSError:
+            pass
     lock.release()
     return None, SeedResult(seed, "skipped" if d.action == "skip" else d.action, d.message, d.summary or {}), None
 
