@@ -276,3 +276,71 @@ def test_workbench_depth_and_labels(plane_blend):
     rel = np.abs(out.depth[on_board] - expected[on_board]) / expected[on_board]
     assert np.median(rel) < 1e-4
     assert set(np.unique(out.seg)) == {sim.labels.index(n) for n in ("Board", "Crate", "Pole")}
+
+
+def test_quality_settings_leave_depth_labels_and_ids_unchanged(plane_blend):
+    """Depth, labels and instance ids come from the pixel centre of the first sample: the
+    quality settings (samples, bounces, denoiser, light tree, adaptive sampling) never change them."""
+    sim = Simulator(plane_blend, points_density=1, segmentation_sensitivity=0.0, render_preset="preview")
+    first = sim.render()
+    for preset, extra in [("high", {"samples": 8}),
+                          ("default", {"light_tree": False, "adaptive_threshold": 0.0, "denoise_quality": "FAST",
+                                       "denoise_prefilter": "NONE", "bounces": 1, "samples": 3})]:
+        sim.configure_render(preset, **extra)
+        out = sim.render()
+        np.testing.assert_array_equal(out.depth, first.depth)
+        np.testing.assert_array_equal(out.seg, first.seg)
+        np.testing.assert_array_equal(out.instance, first.instance)
+        assert np.abs(out.rgb - first.rgb).max() > 0  # the colour did change
+
+
+def test_bounces_do_not_depend_on_the_previous_preset(plane_blend):
+    import bpy
+
+    sim = Simulator(plane_blend, points_density=1, render_preset="preview")
+    sim.configure_render("high")
+    c = bpy.context.scene.cycles
+    assert (c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces) == (12, 12, 12, 12)
+
+
+def test_device_auto_gpu_and_cpu(plane_blend):
+    """No GPU here: 'auto' renders on the CPU, 'gpu' is a one-line error that changes nothing."""
+    import bpy
+
+    from generator.blender.devices import DeviceUnavailableError, gpu_devices
+
+    with pytest.raises(ValueError, match="device must be one of cpu, gpu, auto"):
+        resolve_settings("preview", device="tpu")
+    sim = Simulator(plane_blend, points_density=1, segmentation_sensitivity=0.0, render_preset="preview")
+    assert sim.render_device == "CPU"  # the CPU unless told otherwise
+    cpu = sim.render()
+    gpu = gpu_devices()
+    sim.configure_render(device="auto")
+    if gpu is not None:  # a GPU machine: auto and gpu use it
+        assert sim.render_device.startswith(gpu[0] + ": ")
+        return
+    assert sim.render_device == "CPU"
+    with pytest.raises(DeviceUnavailableError, match="no CUDA or OptiX GPU") as err:
+        sim.configure_render(device="gpu", samples=7)
+    assert "\n" not in str(err.value)
+    assert bpy.context.scene.cycles.samples == 4 and sim.render_device == "CPU"  # nothing was applied
+    out = sim.render()
+    np.testing.assert_array_equal(out.rgb, cpu.rgb)  # same device, same settings: same pixels
+    np.testing.assert_array_equal(out.depth, cpu.depth)
+
+
+def test_cli_device(finished, tmp_path):
+    from conftest import run_generator
+    from exporters.manifest import read_manifest
+    from generator.render_settings import probe_gpu
+
+    out, _ = finished
+    manifest = read_manifest(out / "seed_000004")
+    assert manifest["config"]["device"] == "auto"
+    gpu = probe_gpu()
+    assert manifest["summary"]["render_device"] == ("CPU" if gpu is None else gpu)
+    if gpu is None:
+        r = run_generator(tmp_path / "gpu", "--seeds", "1", "--device", "gpu")
+        assert r.returncode == 2 and r.stdout == ""
+        assert r.stderr.count("\n") == 1 and "no CUDA or OptiX GPU" in r.stderr
+        assert not any((tmp_path / "gpu").glob("seed_*"))
