@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -92,6 +93,20 @@ def parse_args(argv=None) -> argparse.Namespace:
     return args
 
 
+def _inside_a_seed(out: Path) -> Path | None:
+    """The complete or partial seed folder ``out`` lies in (or is), if any."""
+    from exporters.manifest import PARTIAL_MARKER, read_manifest
+
+    for folder in [out.resolve(), *out.resolve().parents]:
+        if read_manifest(folder) is not None or (folder / PARTIAL_MARKER).is_file():
+            return folder
+    return None
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["verify"]:
@@ -100,6 +115,10 @@ def main(argv=None) -> int:
         return verify(argv[1:])
     args = parse_args(argv)
     cfg = args.config
+    inside = _inside_a_seed(args.out)
+    if inside:
+        print(f"error: --out {args.out} is inside the seed folder {inside}; choose a folder outside it", file=sys.stderr)
+        return 2
     try:
         args.out.mkdir(parents=True, exist_ok=True)
         probe = args.out / f".write-test-{os.getpid()}"
@@ -113,6 +132,7 @@ def main(argv=None) -> int:
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
     opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers)
+    signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
         results = run_seeds(args.out, seeds, cfg, opts)
     except KeyboardInterrupt:

@@ -61,8 +61,10 @@ def test_things_in_the_way_are_left_alone_with_one_line_each(tmp_path, finished)
     (out / ".seed_000007.partial").mkdir()
     (out / ".seed_000007.partial" / "notes.txt").write_text("mine")
     (out / ".seed_000008.lock").mkdir()
+    (tmp_path / "user.txt").write_text("never truncated")
+    (out / ".seed_000010.lock").symlink_to(tmp_path / "user.txt")
     before, before_elsewhere = _snapshot(out), _snapshot(elsewhere)
-    seeds = [1, 2, 3, 5, 6, 7, 8, 9]
+    seeds = [1, 2, 3, 5, 6, 7, 8, 9, 10]
     for extra in ([], ["--overwrite"]):
         r = run(out, "--seeds", *map(str, seeds), *extra)
         _no_traceback(r)
@@ -74,8 +76,9 @@ def test_things_in_the_way_are_left_alone_with_one_line_each(tmp_path, finished)
         assert "is a file" in lines[2] and "is a symlink" in lines[3]
         assert "holds a JSON list" in lines[5] and "lacks format_version, config, files" in lines[6]
         assert "not made by this tool" in lines[7] and "lock file" in lines[8]
-        assert "outside its folder" in lines[9]
+        assert "outside its folder" in lines[9] and "lock file" in lines[10]
         assert _snapshot(out) == before and _snapshot(elsewhere) == before_elsewhere
+        assert (tmp_path / "user.txt").read_text() == "never truncated"
 
 
 def test_complete_seed_made_with_other_parameters_is_left_alone(tmp_path, finished):
@@ -211,6 +214,20 @@ def test_two_runs_of_one_seed_end_with_one_complete_seed(tmp_path):
     assert not list(tmp_path.glob(".seed_*"))
 
 
+def test_terminated_run_removes_what_it_started(tmp_path):
+    """SIGTERM (a scheduler's polite kill) cleans up like Ctrl-C: the seed in progress is
+    removed, its lock is gone, nothing is marked complete."""
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "13"]
+    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (tmp_path / ".seed_000013.partial" / "blender.log").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    proc.terminate()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_commit_checks_the_partial_folder_against_its_manifest(tmp_path, finished):
     """Nothing half-written is marked complete: a file that grew after the manifest, an
     unlisted file or a missing one stop the commit; an intact folder commits atomically."""
@@ -244,6 +261,15 @@ def test_scoring_density_is_refused_before_rendering(tmp_path):
     assert r.returncode == 1 and "--scoring-density 8000 on this site" in r.stdout, r.stdout[-2000:]
     assert not (tmp_path / "seed_000012").exists()
     assert not list((tmp_path / ".seed_000012.partial").rglob("*.exr"))
+
+
+def test_out_inside_a_seed_folder_is_refused(tmp_path, finished):
+    folder = _copy_seed(finished, tmp_path)
+    before = _snapshot(folder)
+    for out in (folder, folder / "orbit", folder / "new" / "deeper"):
+        r = run(out, "--seeds", "1")
+        assert r.returncode == 2 and "is inside the seed folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert _snapshot(folder) == before
 
 
 def test_scene_cli_out_naming_a_file(tmp_path):

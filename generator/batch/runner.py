@@ -109,7 +109,10 @@ class _Worker:
 
     def _cause(self) -> str:
         errors = [e["message"] for e in self.events if e["event"] == "error"]
-        cause = errors[0] if errors else (self.stderr.strip().splitlines() or [f"exit code {self.proc.returncode}"])[-1]
+        code = self.proc.returncode
+        ended = f"killed by {signal.Signals(-code).name}" + (" (out of memory?)" if code == -signal.SIGKILL else "") \
+            if code < 0 else f"exit code {code}"
+        cause = errors[0] if errors else (self.stderr.strip().splitlines() or [ended])[-1]
         log = self.folder / "error.log"
         return cause + (f" (details: {log})" if log.exists() else "")
 
