@@ -44,7 +44,7 @@ def _checked(call, *args, path=None):
         raise DatasetError(str(damaged(path, reason(exc)))) from None
 
 
-def _index(i, n: int, what: str) -> int:
+def check_index(i, n: int, what: str) -> int:
     """Python indexing (negative counts from the end) with a message stating the valid range."""
     if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
         raise TypeError(f"{what} index must be an integer, got {type(i).__name__}")
@@ -148,7 +148,7 @@ class Sequence:
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self)))]
-        i = _index(i, len(self), f"{self.kind} frame")
+        i = check_index(i, len(self), f"{self.kind} frame")
         path = self.exr_path(i)
         if not path.is_file():
             raise DatasetError(f"{path}: missing frame; the seed folder is incomplete, regenerate it")
@@ -164,7 +164,7 @@ class Sequence:
     def visible_tracks(self, t: int) -> dict:
         """Points visible at frame t (Python indexing: -1 is the last frame): ``ids`` (n,),
         ``xy`` (n, 2) pixels, ``depth`` (n,) metres."""
-        t = _index(t, len(self), f"{self.kind} frame")
+        t = check_index(t, len(self), f"{self.kind} frame")
         a, b = int(self.offsets[t]), int(self.offsets[t + 1])
         out = {k: self._h5.read(f"visibility/{name}", np.s_[a:b]) for k, name in
                (("ids", "index"), ("xy", "xy"), ("depth", "depth"))}
@@ -179,7 +179,7 @@ class Sequence:
         ones moved)."""
         from exporters.tracks import world_positions
 
-        t = _index(t, len(self), f"{self.kind} frame")
+        t = check_index(t, len(self), f"{self.kind} frame")
         ids = np.asarray(ids)
         n = len(self.points["label"])
         if ids.size and (ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n):
@@ -308,7 +308,7 @@ class _Frames:
         return int(self.starts[-1])
 
     def locate(self, i: int) -> tuple[Sequence, int]:
-        i = _index(i, len(self), "frame")
+        i = check_index(i, len(self), "frame")
         k = int(np.searchsorted(self.starts, i, side="right") - 1)
         return self.sequences[k], i - int(self.starts[k])
 

@@ -12,7 +12,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from .scene import DatasetError, Scene, Sequence
+from .scene import DatasetError, Scene, Sequence, check_index
 
 
 def _scenes(paths: str | Path | Scene | Iterable) -> list[Scene]:
@@ -22,6 +22,11 @@ def _scenes(paths: str | Path | Scene | Iterable) -> list[Scene]:
     if not scenes:
         raise DatasetError("no scenes given")
     return scenes
+
+
+def _check_count(name: str, value) -> None:
+    if value is not None and not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
+        raise ValueError(f"{name} must be None or an integer >= 1, got {value!r}")
 
 
 def _to_tensor(sample: dict) -> dict:
@@ -70,7 +75,7 @@ class FrameDataset(_Base):
         return len(self.index)
 
     def __getitem__(self, i: int) -> dict:
-        s, kind, j = self.index[i]
+        s, kind, j = self.index[check_index(i, len(self), "FrameDataset item")]
         scene = self.scenes[s]
         f = scene[kind][j]
         sample = {k: getattr(f, k) for k in self.keys}
@@ -89,8 +94,9 @@ class ClipDataset(_Base):
     def __init__(self, paths, length: int = 2, stride: int = 1, trajectories: list[str] | None = None,
                  transform: Callable | None = None, as_tensor: bool = False, max_points: int | None = None):
         super().__init__(transform, as_tensor)
-        if length < 1 or stride < 1:
-            raise ValueError(f"length and stride must be at least 1, got {length}, {stride}")
+        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1 for v in (length, stride)):
+            raise ValueError(f"length and stride must be integers >= 1, got {length!r}, {stride!r}")
+        _check_count("max_points", max_points)
         self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
         self.index: list[tuple[int, str, int]] = []
         span = (length - 1) * stride
@@ -104,7 +110,7 @@ class ClipDataset(_Base):
     def __getitem__(self, i: int) -> dict:
         from generator.geometry.camera import project
 
-        s, kind, start = self.index[i]
+        s, kind, start = self.index[check_index(i, len(self), "ClipDataset item")]
         seq: Sequence = self.scenes[s][kind]
         times = [start + k * self.stride for k in range(self.length)]
         frames = [seq[t] for t in times]
@@ -145,13 +151,14 @@ class PointCloudDataset(_Base):
     def __init__(self, paths, num_points: int | None = None, static_only: bool = False,
                  transform: Callable | None = None, as_tensor: bool = False):
         super().__init__(transform, as_tensor)
+        _check_count("num_points", num_points)
         self.scenes, self.num_points, self.static_only = _scenes(paths), num_points, static_only
 
     def __len__(self) -> int:
         return len(self.scenes)
 
     def __getitem__(self, i: int) -> dict:
-        scene = self.scenes[i]
+        scene = self.scenes[check_index(i, len(self), "PointCloudDataset item")]
         cloud = scene.point_cloud(self.static_only)
         if self.num_points is not None and self.num_points < len(cloud["xyz"]):
             keep = np.sort(np.random.default_rng(scene.seed).choice(len(cloud["xyz"]), self.num_points, replace=False))

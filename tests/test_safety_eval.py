@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from datasets import DatasetError, Scene
+from datasets import ClipDataset, DatasetError, FrameDataset, PointCloudDataset, Scene
 from evaluation import Cloud
 from evaluation.coverage import Poses
 from evaluation.inputs import InputError
@@ -218,6 +218,14 @@ def test_every_accessor_follows_python_indexing(seed_folder):
         seq[1.5]
     with pytest.raises(IndexError, match="point ids"):
         seq.point_positions(0, [10 ** 9])
+    frames = FrameDataset(seed_folder)  # the training datasets index the same way
+    assert frames[-1]["index"] == 2 and frames[-1]["trajectory"] == "spline"
+    with pytest.raises(IndexError, match=r"FrameDataset item index 6 out of range: valid indices are -6\.\.5"):
+        frames[6]
+    for bad in (lambda: ClipDataset(seed_folder, length=0), lambda: ClipDataset(seed_folder, max_points=-1),
+                lambda: ClipDataset(seed_folder, length=2.5), lambda: PointCloudDataset(seed_folder, num_points=0)):
+        with pytest.raises(ValueError, match="integer"):
+            bad()
 
 
 def _colmap_copy(src, dst):
@@ -368,7 +376,7 @@ try:
 except ValueError as exc:
     print('REFUSED', exc)
 start = sim.get_world_from_camera()
-assert sim.move_camera_forward(-9e8) is False
+assert sim.move_camera_forward(-1e9) is False  # the call
 moved = sim.get_world_from_camera()[:3, 3] - start[:3, 3]
 print('MOVED', float(np.linalg.norm(moved)))
 print('THROUGH_WALL', sim.can_move([0, -1e8, 1.5], [0, 10, 1.5]), sim.can_move([-1e8, 2, 1.5], [1e8, 2, 1.5]))
@@ -377,5 +385,5 @@ print('THROUGH_WALL', sim.can_move([0, -1e8, 1.5], [0, 10, 1.5]), sim.can_move([
     assert r.returncode == 0, r.stderr[-2000:]
     out = dict(line.split(" ", 1) for line in r.stdout.splitlines() if line.split(" ")[0].isupper())
     assert out["REFUSED"].startswith("position must be finite")
-    assert float(out["MOVED"]) == pytest.approx(9e8)
+    assert float(out["MOVED"]) == pytest.approx(1e9)
     assert out["THROUGH_WALL"] == "False True"  # the wall blocks the long sweep; a clear long line is free

@@ -7,7 +7,7 @@ import numpy as np
 from .raycast import SceneGeometry
 
 
-MAX_COORDINATE = 1e9  # metres; positions farther from the origin are refused
+MAX_COORDINATE = 1e10  # metres; positions farther from the origin are refused
 _MAX_SAMPLES = 100_000  # first pass of a sweep; the bisection below keeps the test exact
 _LONG = 1000.0  # metres: longer moves are first clipped to the scene's bounds
 
