@@ -4,6 +4,7 @@ number of viewpoints, what it costs, and where the never-observable points lie.
 Usage:
   .venv/bin/python tools/observability_study.py --seed 0 [--blend site.blend] [--density 10]
       [--viewpoints 1024] [--json out.json]
+  .venv/bin/python tools/observability_study.py --plot docs/images/observability_convergence.png a.json b.json ...
 
 Without ``--blend`` the medium site of the seed is built in a temporary folder. The scoring
 cloud is sampled as exporters.ground_truth does (at ``--density`` points/m^2; the share does
@@ -66,7 +67,49 @@ def study(blend: Path, seed: int, density: float, viewpoints: int, size: float) 
             "per_label": per_label}
 
 
+def plot(path: Path, results: list[dict]) -> Path:
+    """Observable share against the number of viewpoints (log2 axis), one curve per result."""
+    from PIL import Image, ImageDraw
+
+    W, H, left, right, top, bottom = 720, 420, 60, 20, 30, 50
+    img = Image.new("RGB", (W, H), "white")
+    d = ImageDraw.Draw(img)
+    x0, x1, y0, y1 = left, W - right, H - bottom, top
+    kmax = max(len(r["curve"]) for r in results)
+    lo, hi = 0.0, 1.0
+    d.rectangle([x0, y1, x1, y0], outline=(0, 0, 0))
+    for k in range(11):
+        y = y0 + (y1 - y0) * k / 10
+        d.line([(x0, y), (x1, y)], fill=(230, 230, 230))
+        d.text((x0 - 32, y - 6), f"{lo + (hi - lo) * k / 10:.1f}", fill=(0, 0, 0))
+    xs = lambda k: x0 + (x1 - x0) * np.log2(k) / np.log2(kmax)  # noqa: E731
+    k = 1
+    while k <= kmax:
+        d.line([(xs(k), y0), (xs(k), y1)], fill=(230, 230, 230))
+        d.text((xs(k) - 8, y0 + 6), str(k), fill=(0, 0, 0))
+        k *= 2
+    d.text((W // 2 - 90, H - 22), "viewpoints (log scale)", fill=(0, 0, 0))
+    d.text((x0, 8), "share of ground-truth points observable (medium sites)", fill=(0, 0, 0))
+    colours = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189), (140, 86, 75)]
+    for j, r in enumerate(results):
+        c = np.asarray(r["curve"], float) / r["points"]
+        pts = [(xs(k + 1), y0 + (y1 - y0) * (c[k] - lo) / (hi - lo)) for k in range(len(c))]
+        colour = colours[j % len(colours)]
+        d.line(pts, fill=colour, width=2)
+        d.text((x1 - 260, y0 - 20 - 14 * (len(results) - j)), r.get("name", f"seed {r['seed']}"), fill=colour)
+    img.save(path)
+    return path
+
+
 def main() -> None:
+    if len(sys.argv) > 2 and sys.argv[1] == "--plot":
+        results = []
+        for f in sys.argv[3:]:
+            r = json.loads(Path(f).read_text())
+            r["name"] = f"seed {r['seed']}" + (" (before)" if "before" in Path(f).name else "")
+            results.append(r)
+        print(plot(Path(sys.argv[2]), results))
+        return
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--blend", type=Path)
