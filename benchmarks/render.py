@@ -14,7 +14,7 @@ prefilter and its large network. Timings: median seconds per frame of ``Simulato
 wall clock and CPU time of all its threads (the latter barely moves when other work shares the machine).
 
 Usage: .venv/bin/python benchmarks/render.py [--presets preview default high] [--frames 0 13 26]
-       [--repeats 2] [--references-only]
+       [--repeats 2] [--references-only] [--set samples=3 ...]
 """
 
 from __future__ import annotations
@@ -127,7 +127,10 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path("/tmp/buildee-render-bench"),
                     help="site and references, reused between runs")
     ap.add_argument("--references-only", action="store_true", help="render the missing references and stop")
+    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="render settings on top of the 'after' presets, e.g. samples=3 light_tree=true (JSON values)")
     args = ap.parse_args()
+    overrides = {k: json.loads(v) if v[:1] in "0123456789-[tfn" else v for k, v in (a.split("=", 1) for a in args.set)}
     args.cache.mkdir(parents=True, exist_ok=True)
     sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview")
     sim.configure_render(resolution=RESOLUTION)
@@ -137,10 +140,10 @@ def main() -> None:
     if args.references_only:
         return
     print(f"medium site of seed {args.seed}, orbit frames {args.frames}, {RESOLUTION[0]}x{RESOLUTION[1]}, "
-          f"device {sim.render_device}", flush=True)
+          f"device {sim.render_device}" + (f", after with {overrides}" if overrides else ""), flush=True)
     for preset in args.presets:
         before, raw = BEFORE[preset]
-        runs = {"before": (before, raw), "after": (resolve_settings(preset), None)}
+        runs = {"before": (before, raw), "after": (resolve_settings(preset, **overrides), None)}
         times = {k: [] for k in runs}
         cpu = {k: [] for k in runs}
         quality = {k: {} for k in runs}
