@@ -24,7 +24,9 @@ from .common import FRAME_TIMELINE, MAX_POINTS, TIME_TIMELINE, annotation_contex
 
 STANDARD_IMAGES = ("rgb", "depth", "label", "instance")
 CLOUD_RADIUS = 0.03   # metres: GT points
-TRACK_RADIUS_UI = 2.5  # UI points: tracked points, 2D and 3D
+TRACK_RADIUS_UI = 1.0  # UI points: tracked points, 2D and 3D (thousands per frame: small, so the image shows)
+FRUSTUM_DEPTH = 4.0    # metres: where the camera's image plane is drawn in 3D
+PATH_COLORS = [(255, 0, 255), (0, 220, 255), (255, 255, 255), (0, 255, 0)]  # per trajectory, not class colours
 
 
 def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: int = MAX_POINTS,
@@ -38,8 +40,8 @@ def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: 
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     counts = {"points": log_cloud(rec, scene, max_points), "frames": {}}
     log_mesh(rec, scene)
-    for kind in kinds:
-        counts["frames"][kind] = log_sequence(rec, scene[kind], progress)
+    for i, kind in enumerate(kinds):
+        counts["frames"][kind] = log_sequence(rec, scene[kind], progress, PATH_COLORS[i % len(PATH_COLORS)])
     return counts
 
 
@@ -98,14 +100,16 @@ def log_mesh(rec, scene: Scene) -> None:
                                                  vertex_colors=colors), static=True)
 
 
-def log_sequence(rec, seq: Sequence, progress=None) -> int:
+def log_sequence(rec, seq: Sequence, progress=None, color=PATH_COLORS[0]) -> int:
     """One trajectory: camera path, pinhole, and per frame pose, images, tracks, coverage."""
     import rerun as rr
 
     base = f"world/{seq.kind}"
-    rec.log(f"{base}/path", rr.LineStrips3D([seq.poses[:, :3, 3]], radii=rr.Radius.ui_points(1.5)), static=True)
+    rec.log(f"{base}/path", rr.LineStrips3D([seq.poses[:, :3, 3]], radii=rr.Radius.ui_points(2.0), colors=[color]),
+            static=True)
     rec.log(f"{base}/camera", rr.Pinhole(image_from_camera=seq.K, resolution=[seq.width, seq.height],
-                                         camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=1.0), static=True)
+                                         camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=FRUSTUM_DEPTH,
+                                         color=color, line_width=rr.Radius.ui_points(2.0)), static=True)
     rec.log(f"{base}/camera/instance", rr.AnnotationContext([]), static=True)  # object ids: not label names
     coverage, labels = seq.coverage, seq.points["label"]
     frames = range(len(seq))
