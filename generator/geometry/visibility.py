@@ -20,6 +20,12 @@ import numpy as np
 from .raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
 
 
+# Occlusion rays are cast in screen tiles of TILE pixels (row by row), so that neighbouring
+# rays traverse the same part of the acceleration structure (about 2x faster than in
+# storage order, where points are scattered at random over each part).
+TILE = 16
+
+
 @dataclass(frozen=True)
 class ViewLimits:
     """Depth limits in metres (planar z): visible points have near < z <= far."""
@@ -50,12 +56,15 @@ def visible_points(
     height: int,
     limits: ViewLimits = ViewLimits(),
     stats: VisibilityStats | None = None,
+    ray_per_point: bool = False,
 ) -> np.ndarray:
     """Visibility mask (N,) of world points (N, 3) from a camera pose.
 
     ``normals`` (N, 3) are the world-space outward unit normals of the points' surfaces and
     ``part_index`` (N,) the index of the part each point lies on; both are optional and
     only enable rule 3 (a shortcut that never changes the answer for solids seen from outside).
+    One occlusion ray per remaining point (rule 4), cast in screen-tile order; with
+    ``ray_per_point`` in storage order (the same answer, the plain reference).
     """
     points = np.asarray(points)
     n = len(points)
@@ -79,19 +88,33 @@ def visible_points(
         cam_outside = np.any((centre < bounds[:, 0]) | (centre > bounds[:, 1]), axis=1)
         closed = np.array([p.closed for p in geometry.parts], dtype=bool)
         cullable_part = closed & cam_outside
-        pi = part_index[idx]
-        cullable = cullable_part[pi]
-        facing_away = np.einsum("ij,ij->i", normals[idx], points[idx] - centre) > 0
-        drop = cullable & facing_away
-        culled = int(drop.sum())
-        idx = idx[~drop]
+        if cullable_part.any():
+            # n . (p - c) in camera coordinates: the normals rotated once per call
+            facing = normals[idx] @ r
+            facing_away = facing[:, 0] * x[idx] + facing[:, 1] * y[idx] + facing[:, 2] * z[idx] > 0
+            drop = cullable_part[part_index[idx]] & facing_away
+            culled = int(drop.sum())
+            idx = idx[~drop]
 
-    targets = points[idx]
-    dist = np.linalg.norm(targets - centre, axis=1)
-    blocked = geometry.segments_blocked(centre, targets, OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist)
+    if len(idx) > 1 and not ray_per_point:
+        idx = idx[_tile_order(u[idx] / z[idx], v[idx] / z[idx], width)]
+    xs, ys, zs = x[idx], y[idx], z[idx]
+    dist = np.sqrt(xs * xs + ys * ys + zs * zs)
+    blocked = geometry.segments_blocked(centre, points[idx], OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist)
+    rays = len(idx)
     mask = np.zeros(n, dtype=bool)
     mask[idx[~blocked]] = True
     if stats is not None:
         stats.tested, stats.in_view, stats.culled_backfacing = n, in_view, culled
-        stats.rays, stats.visible = len(idx), int(mask.sum())
+        stats.rays, stats.visible = rays, int(mask.sum())
     return mask
+
+
+def _tile_order(px: np.ndarray, py: np.ndarray, width: int) -> np.ndarray:
+    """Order (M,) of points by screen tile (TILE x TILE pixels, row by row) from their pixel
+    coordinates (>= 0); a stable radix sort on small integer keys."""
+    cols = int(width) // TILE + 1
+    key = (py * (1.0 / TILE)).astype(np.int32) * cols + (px * (1.0 / TILE)).astype(np.int32)
+    if key.max(initial=0) < np.iinfo(np.int16).max:
+        key = key.astype(np.int16)
+    return np.argsort(key, kind="stable")
