@@ -204,7 +204,7 @@ def commit(out: Path, seed: int, config: dict, replace: bool) -> str:
     if problems:
         return f"{partial}: {problems[0]}" + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
     if replace and os.path.lexists(final):
-        os.rename(final, replaced_folder(out, seed))
+        rename_no_replace(final, replaced_folder(out, seed))
     try:
         rename_no_replace(partial, final)
     except OSError as exc:

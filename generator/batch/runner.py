@@ -165,6 +165,7 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> lis
     results: list[SeedResult] = []
     pending = list(seeds)
     running: list[_Worker] = []
+    announced: set[int] = set()
     overall = tqdm(total=len(seeds), desc="seeds", unit="seed", position=0, dynamic_ncols=True)
 
     def report(r: SeedResult):
@@ -182,6 +183,9 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> lis
                     report(settled)
                 elif lock is None:
                     waiting.append(seed)
+                    if seed not in announced:
+                        announced.add(seed)
+                        tqdm.write(f"seed {seed}: being written by another run; waiting (--wait)")
                 elif w := _start(seed, out, cfg, lock, decision, running, bar_lock, report):
                     running.append(w)
             pending = waiting + pending
