@@ -14,7 +14,7 @@ from pathlib import Path
 
 from trajectories import KINDS
 
-from .batch.config import MAX_FRAMES, MAX_SEED, RunConfig
+from .batch.config import MAX_FRAMES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
 from .cli_args import OneLineParser, int_at_least, positive_float, resolution
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
@@ -64,7 +64,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--points-density", type=positive_float(), default=DEFAULTS.points_density,
                    help=f"surface points per square metre for tracking and coverage (default: {DEFAULTS.points_density})")
     p.add_argument("--scoring-density", type=positive_float(), default=DEFAULTS.scoring_density,
-                   help=f"points per square metre of the ground-truth cloud for scoring (default: {DEFAULTS.scoring_density:g})")
+                   help=f"points per square metre of the ground-truth cloud for scoring, at most "
+                        f"{MAX_SCORING_POINTS // 10**6} million points in all (default: {DEFAULTS.scoring_density:g})")
     p.add_argument("--colmap-text", action="store_true", help="also write the COLMAP models as text (.txt)")
     p.add_argument("--workers", type=int_at_least(1, "workers"), default=1,
                    help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")

@@ -14,7 +14,7 @@ MAX_SIDE = 16384  # Blender clamps above 65536
 MAX_PIXELS = 3840 * 2160  # 4K UHD: a render peaks at ~920 bytes a pixel (measured), ~7.6 GB here
 MAX_FRAMES = 10_000  # per trajectory; the site's animation set-up grows faster than linearly past this
 MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
-MAX_SCORING_POINTS = 50_000_000  # ground-truth cloud: ~57 bytes a point in memory, several copies at peak
+MAX_SCORING_POINTS = 25_000_000  # ground-truth cloud: ~220 bytes a point at peak (measured), ~5.5 GB
 MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every frame
 
 
