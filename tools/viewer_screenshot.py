@@ -17,6 +17,7 @@ import base64
 import json
 import os
 import shutil
+import signal
 import socket
 import struct
 import subprocess
@@ -118,6 +119,8 @@ def main() -> None:
     if chromium is None:
         sys.exit("error: no chromium here; apt-get install chromium")
     procs = []
+    # a SIGTERM (e.g. from `timeout`) must still stop the viewer and the browser below
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit("error: terminated"))
     try:
         procs.append(subprocess.Popen([str(rerun), "--web-viewer", "--bind", "127.0.0.1", "--web-viewer-port",
                                        str(args.web_port), "--port", str(args.grpc_port), str(args.rrd)],
@@ -148,7 +151,10 @@ def main() -> None:
     finally:
         for proc in reversed(procs):
             proc.terminate()
-            proc.wait(timeout=20)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
 
 
 if __name__ == "__main__":
