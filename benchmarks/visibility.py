@@ -1,13 +1,21 @@
-"""Visibility throughput: Simulator.compute_point_cloud vs a Python loop over BVHTree.ray_cast.
+"""Visibility speed: Simulator.compute_point_cloud against the paper's method and the plain approach.
 
-Builds a scene of >= 1M triangles in code (a subdivided ground, dense spheres and boxes, a few
-moving objects), samples >= 1M surface points, and measures in one run:
-- points tested per second by ``compute_point_cloud`` (all N points, several poses);
-- points tested per second by the reference: one ``BVHTree.ray_cast`` per point in Python
-  (on a random subset), and the agreement of both answers on that subset;
-- exploration steps per second without RGB (a move or turn + ``compute_point_cloud``).
+On two scenes, measured in one run per scene (one Simulator per process at a time):
+- "bench": built in code, >= 1M triangles (a subdivided ground, dense spheres and boxes, a
+  few moving objects), 45 points/m2 (>= 1M points), 10 poses turning on the spot;
+- "site": the medium procedural site of seed 0 at the batch job's density (2 points/m2,
+  60 m depth limit), poses from its orbit and spline trajectories (every 4th of 40 + 40).
 
-Usage: .venv/bin/python benchmarks/visibility.py [--subset 20000] [--poses 10]
+Per pose, all timed on the same points and pose:
+- ours: ``compute_point_cloud`` (all N points);
+- plain: numpy projection and frustum/depth cull of all N points, then one open3d
+  ``test_occlusions`` call for every point in the frustum (timed whole);
+- paper: the paper's code: project and cull in numpy, build the dynamic BVHTree, then two
+  ``mathutils`` ``BVHTree.ray_cast`` calls (static and dynamic trees) per point in the
+  frustum in a Python loop, timed on a random subset and scaled to the in-frustum count.
+Then exploration steps without RGB (a move or turn + compute_point_cloud) on "bench".
+
+Usage: .venv/bin/python benchmarks/visibility.py [--scenes bench site] [--subset 2000]
 """
 
 from __future__ import annotations
@@ -64,88 +72,178 @@ def build_scene(path: Path) -> None:
     session.save_blend(path)
 
 
-def reference_visibility(sim: Simulator, points: np.ndarray) -> tuple[np.ndarray, float]:
-    """One BVHTree.ray_cast per point, in a Python loop (the reference approach)."""
-    from mathutils import Vector
-    from mathutils.bvhtree import BVHTree
+def build_site_blend(tmp: Path) -> Path:
+    from generator.scene import build_site
 
-    verts, faces, offset = [], [], 0
-    for part in sim._parts:  # the same world triangles the simulator uses
-        verts.append(part.world_vertices())
-        faces.append(part.faces + offset)
-        offset += len(part.vertices)
-    tree = BVHTree.FromPolygons(np.concatenate(verts).tolist(), np.concatenate(faces).tolist(), all_triangles=True)
-    pose = sim.get_world_from_camera()
-    origin = Vector(pose[:3, 3])
-    uv, z = sim.project(points)
+    return build_site(0, "medium", tmp / "site", preview=False).blend
+
+
+def site_poses(sim: Simulator) -> list[np.ndarray]:
+    from generator.batch.config import plan_trajectory
+
+    poses = []
+    for kind in ("orbit", "spline"):
+        traj = plan_trajectory(kind, sim, sim.spawn_points, sim.get_world_from_camera(), 0, 40, sim.fps)
+        poses += list(traj.poses[::4])
+    return poses
+
+
+def bench_poses(sim: Simulator, count: int = 10) -> list[np.ndarray]:
+    poses = []
+    for _ in range(count):
+        sim.turn_camera_right(360 / count)
+        poses.append(sim.get_world_from_camera())
+    return poses
+
+
+def frustum(sim: Simulator, points: np.ndarray) -> np.ndarray:
+    """The paper's projection and cull (numpy): indices of points in the image and depth range."""
+    camera_from_world = np.linalg.inv(sim.get_world_from_camera())
+    cam = camera_from_world[:3, :3] @ points.T + camera_from_world[:3, 3:]
+    px = sim.K @ cam
+    px = px[:2] / px[2]
     near, far = sim.clip_start, min(sim.clip_end, sim.max_pcl_depth)
-    in_view = (z > near) & (z <= far) & (uv[:, 0] >= 0) & (uv[:, 0] < sim.width) & (uv[:, 1] >= 0) & (uv[:, 1] < sim.height)
-    out = np.zeros(len(points), dtype=bool)
-    t0 = time.perf_counter()
-    for i, p in enumerate(points):
-        d = Vector(p) - origin
-        dist = d.length
-        hit, _, _, _ = tree.ray_cast(origin, d / dist, dist - (OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist))
-        out[i] = hit is None
-    elapsed = time.perf_counter() - t0
-    return out & in_view, elapsed
+    return np.flatnonzero((cam[2] > near) & (cam[2] <= far) & (px[0] >= 0) & (px[0] < sim.width) & (px[1] >= 0)
+                          & (px[1] < sim.height))
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--subset", type=int, default=20000, help="points timed with the reference loop")
-    ap.add_argument("--poses", type=int, default=10, help="poses timed with compute_point_cloud")
-    ap.add_argument("--density", type=float, default=45.0, help="surface points per square metre")
-    args = ap.parse_args()
+class Plain:
+    """numpy cull + one open3d test_occlusions call on the in-frustum points (all triangles in one scene)."""
 
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "bench.blend"
+    def __init__(self, sim: Simulator):
+        from generator.geometry.o3d import import_open3d
+
+        self.o3d = import_open3d()
+        self.scene = self.o3d.t.geometry.RaycastingScene()
+        for part in sim.scene_parts():
+            self.scene.add_triangles(np.ascontiguousarray(part.world_vertices(), np.float32),
+                                     np.ascontiguousarray(part.faces, np.uint32))
+
+    def __call__(self, sim: Simulator, points: np.ndarray) -> np.ndarray:
+        idx = frustum(sim, points)
+        centre = sim.get_world_from_camera()[:3, 3]
+        delta = points[idx] - centre
+        dist = np.linalg.norm(delta, axis=1)
+        rays = np.empty((len(idx), 6), np.float32)
+        rays[:, :3] = centre
+        rays[:, 3:] = delta * (1 - (OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist) / dist)[:, None]
+        hit = self.scene.test_occlusions(self.o3d.core.Tensor.from_numpy(rays), tnear=0.0, tfar=1.0).numpy()
+        mask = np.zeros(len(points), bool)
+        mask[idx[~hit.astype(bool)]] = True
+        return mask
+
+
+class Paper:
+    """The paper's compute_point_cloud: cull, dynamic BVH rebuilt per call, two ray_casts per point."""
+
+    def __init__(self, sim: Simulator):
+        parts = sim.scene_parts()
+        self.static_tree = self._tree([p for p in parts if not p.dynamic])
+        self.dynamic_parts = [p for p in parts if p.dynamic]
+
+    @staticmethod
+    def _tree(parts):
+        from mathutils.bvhtree import BVHTree
+
+        verts, faces, offset = [np.zeros((0, 3))], [np.zeros((0, 3), np.int64)], 0
+        for part in parts:
+            verts.append(part.world_vertices())
+            faces.append(part.faces + offset)
+            offset += len(part.vertices)
+        return BVHTree.FromPolygons(np.concatenate(verts).tolist(), np.concatenate(faces).tolist(), all_triangles=True)
+
+    def __call__(self, sim: Simulator, points: np.ndarray, subset: int, rng) -> tuple[float, np.ndarray, np.ndarray]:
+        """Estimated seconds for the whole call, and (subset indices, visible on the subset)."""
+        from mathutils import Vector
+
         t0 = time.perf_counter()
-        build_scene(path)
-        t_build = time.perf_counter() - t0
+        idx = frustum(sim, points)
+        dynamic_tree = self._tree(self.dynamic_parts)
+        fixed = time.perf_counter() - t0
+        sub = rng.choice(idx, size=min(subset, len(idx)), replace=False) if len(idx) else idx
+        origin = Vector(sim.get_world_from_camera()[:3, 3])
+        vis = np.ones(len(sub), bool)
         t0 = time.perf_counter()
-        sim = Simulator(path, points_density=args.density, seed=0)
-        t_init = time.perf_counter() - t0
-    n_tri = sum(len(p.faces) for p in sim._parts)
-    n = sim.num_points
-    print(f"scene: {n_tri:,} triangles, {n:,} points, {len(sim.dynamic_objects)} dynamic objects; "
-          f"built in {t_build:.1f} s, Simulator() in {t_init:.1f} s")
+        for k, i in enumerate(sub):
+            point = Vector(points[i])
+            ray = point - origin
+            length = ray.length
+            direction = ray.normalized()
+            reach = length - (OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * length)  # our rule's tolerance
+            for tree in (self.static_tree, dynamic_tree):
+                hit, _, _, _ = tree.ray_cast(origin, direction, reach)
+                if hit is not None:
+                    vis[k] = False
+        loop = time.perf_counter() - t0
+        return fixed + (loop / len(sub) * len(idx) if len(sub) else 0.0), sub, vis
 
+
+def measure(sim: Simulator, poses, subset: int, name: str) -> None:
     rng = np.random.default_rng(1)
-    sim.compute_point_cloud()  # warm-up (first dynamic structure build)
-    times, stats = [], []
-    for k in range(args.poses):
-        sim.turn_camera_right(360 / args.poses)
+    plain, paper = Plain(sim), Paper(sim)
+    n = sim.num_points
+    sim.compute_point_cloud(update_mask=False)  # warm-up: structures built lazily
+    totals = np.zeros(3)
+    in_view = agree = checked = same_plain = 0
+    for pose in poses:
+        sim.set_world_from_camera(pose, check_collisions=False)
         t0 = time.perf_counter()
-        sim.compute_point_cloud()
-        times.append(time.perf_counter() - t0)
-        s = sim.last_visibility
-        stats.append((s.in_view, s.culled_backfacing, s.rays, s.visible))
-    ours = n / np.median(times)
-    st = np.mean(stats, axis=0)
-    print(f"ours: {np.median(times) * 1e3:.0f} ms per call, {ours / 1e6:.2f} M points/s "
-          f"(mean per pose: {st[0]:,.0f} in view, {st[1]:,.0f} culled as back faces, {st[2]:,.0f} rays, {st[3]:,.0f} visible)")
+        points, _, vis = sim.compute_point_cloud(update_mask=False)
+        t_ours = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        vis_plain = plain(sim, points)
+        t_plain = time.perf_counter() - t0
+        t_paper, sub, vis_paper = paper(sim, points, subset, rng)
+        totals += [t_ours, t_plain, t_paper]
+        in_view += sim.last_visibility.in_view
+        agree += int((vis[sub] == vis_paper).sum())
+        checked += len(sub)
+        same_plain += int((vis == vis_plain).sum())
+    k = len(poses)
+    print(f"\n[{name}] {sum(len(p.faces) for p in sim.scene_parts()):,} triangles, {n:,} points, {k} poses, "
+          f"{in_view / k:,.0f} points in the frustum per pose")
+    print("| approach | ms per call (mean over poses) | ratio to ours |")
+    print("|---|---|---|")
+    labels = ["ours: `compute_point_cloud`", "plain: numpy cull + one open3d `test_occlusions` call",
+              f"paper: numpy cull + 2 `BVHTree.ray_cast` per point in Python (timed on {checked:,} points, scaled)"]
+    for label, t in zip(labels, totals):
+        print(f"| {label} | {t / k * 1e3:.1f} | {t / totals[0]:.1f}x |")
+    print(f"agreement with the paper's loop on its subset: {agree / max(checked, 1) * 100:.3f}%; with the plain "
+          f"approach (no back-face rule) on all points: {same_plain / (n * k) * 100:.4f}%")
 
-    pts, _, vis = sim.compute_point_cloud(update_mask=False)
-    subset = rng.choice(n, size=min(args.subset, n), replace=False)
-    ref_vis, ref_time = reference_visibility(sim, pts[subset])
-    ref_rate = len(subset) / ref_time
-    agree = float((ref_vis == vis[subset]).mean())
-    print(f"reference (BVHTree.ray_cast loop): {ref_rate / 1e6:.3f} M points/s on {len(subset):,} points")
-    print(f"speed-up: {ours / ref_rate:.0f}x; agreement with the reference on the subset: {agree * 100:.3f}%")
 
-    # exploration steps without RGB: random forward moves and turns + compute_point_cloud
-    sim.set_world_from_camera(sim.get_world_from_camera(), check_collisions=False)
+def exploration(sim: Simulator) -> None:
+    """Exploration steps without RGB: random forward moves and turns + compute_point_cloud."""
+    rng = np.random.default_rng(1)
+    sim.compute_point_cloud()
     t0 = time.perf_counter()
-    steps = 20
-    for k in range(steps):
+    steps = 40
+    for _ in range(steps):
         if rng.random() < 0.5:
             sim.move_camera_forward(2.0)
         else:
             sim.turn_camera_right(rng.choice([-30.0, 30.0]))
         sim.compute_point_cloud()
-    step_rate = steps / (time.perf_counter() - t0)
-    print(f"exploration: {step_rate:.1f} steps/s (move or turn + compute_point_cloud, {n:,} points)")
+    rate = steps / (time.perf_counter() - t0)
+    print(f"exploration: {rate:.1f} steps/s (move or turn + compute_point_cloud, {sim.num_points:,} points)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", nargs="+", choices=["bench", "site"], default=["bench", "site"])
+    ap.add_argument("--subset", type=int, default=2000, help="points per pose timed with the paper's loop")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.scenes:
+            if name == "bench":
+                path = Path(tmp) / "bench.blend"
+                build_scene(path)
+                sim = Simulator(path, points_density=45.0, seed=0)
+                measure(sim, bench_poses(sim), args.subset, "bench")
+                exploration(sim)
+            else:
+                sim = Simulator(build_site_blend(Path(tmp)), points_density=2.0, seed=0, max_pcl_depth=60.0)
+                measure(sim, site_poses(sim), args.subset, "site: medium, seed 0, 2 points/m2")
 
 
 if __name__ == "__main__":

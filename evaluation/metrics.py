@@ -1,9 +1,9 @@
 """Reconstruction metrics (definitions: the Metrics section of DESIGN.md, restated in
 docs/evaluation.md). Distances in metres, Euclidean unless stated; thresholds strict (<).
 
-Everything is derived from one exact nearest-neighbour query per direction (open3d's
-nanoflann k-d tree, float64, all cores), plus one bounded L1 query per direction for the
-paper-compatibility block.
+Everything is derived from one exact k-nearest-neighbour query per direction (open3d's
+nanoflann k-d tree, float64, all cores, against the distinct points only), plus bounded L1
+queries for the points those neighbours do not settle (the paper-compatibility block).
 """
 
 from __future__ import annotations
@@ -19,30 +19,71 @@ DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 
 
-def nearest(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Euclidean distance (N,) from each source point to its nearest target point and that
-    point's index (N,). Exact, in float64 (open3d's nanoflann k-d tree, all cores)."""
+CANDIDATES = 4  # Euclidean nearest neighbours kept per point; they settle most Manhattan queries
+
+
+def unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """The distinct rows of ``points`` (N, 3) in order of first occurrence and those rows'
+    indices into ``points``; ``(points, None)`` when all rows are distinct. Nearest-neighbour
+    trees on many equal points degrade to a linear scan per query (10,000 copies of one
+    point took minutes to score), so queries run against the distinct rows only."""
+    h = points @ np.array([1.0, np.pi, np.e])  # equal rows give equal keys
+    hs = np.sort(h)
+    if not np.any(hs[1:] == hs[:-1]):
+        return points, None
+    _, first = np.unique(points, axis=0, return_index=True)
+    first = np.sort(first)
+    return points[first], first
+
+
+def knn(source: np.ndarray, target: np.ndarray, k: int = 1) -> np.ndarray:
+    """Indices (N, k') into ``target`` of the k' = min(k, distinct targets) Euclidean nearest
+    target points of each source point, nearest first, never two equal target points (the
+    first occurrence stands for its copies). Exact, in float64 (open3d's nanoflann k-d tree,
+    all cores)."""
     from generator.geometry.o3d import import_open3d
 
     o3d = import_open3d()
-    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(np.ascontiguousarray(target, np.float64)))
+    distinct, first = unique_rows(target)
+    k = min(k, len(distinct))
+    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(np.ascontiguousarray(distinct, np.float64)))
     nns.knn_index()
-    idx, d2 = nns.knn_search(o3d.core.Tensor(np.ascontiguousarray(source, np.float64)), 1)
-    idx = idx.numpy()[:, 0].astype(np.int64)
+    idx, _ = nns.knn_search(o3d.core.Tensor(np.ascontiguousarray(source, np.float64)), k)
+    idx = idx.numpy().astype(np.int64).reshape(len(source), k)
+    return idx if first is None else first[idx]
+
+
+def nearest(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Euclidean distance (N,) from each source point to its nearest target point and that
+    point's index (N,). Exact, in float64 (see :func:`knn`)."""
+    idx = knn(source, target, 1)[:, 0]
     # the distance from the coordinates (not from the squared distance) for exact ties with tau
     return np.linalg.norm(source - target[idx], axis=1), idx
 
 
-def nearest_manhattan(source: np.ndarray, target: np.ndarray, euclidean_index: np.ndarray, chunks: int = 32) -> np.ndarray:
+def nearest_manhattan(source: np.ndarray, target: np.ndarray, candidates: np.ndarray, chunks: int = 32) -> np.ndarray:
     """Manhattan (L1) distance (N,) from each source point to its L1-nearest target point.
 
-    The Euclidean nearest neighbour e bounds the search: the L1-nearest q has
-    |x - q|_2 <= |x - q|_1 <= |x - e|_1, so queries run with that upper bound (grouped by
-    bound, since scipy takes one bound per call)."""
-    bound = np.abs(source - target[euclidean_index]).sum(axis=1)
-    tree = cKDTree(target)
-    out = np.empty(len(source))
-    order = np.argsort(bound, kind="stable")
+    ``candidates`` (N, k): indices of the k Euclidean nearest targets, nearest first (a
+    single column, the nearest, is enough). B, the smallest L1 distance to a candidate,
+    bounds the answer, and any other target q is at least R (the k-th Euclidean distance)
+    away: |x - q|_1 >= |x - q|_2 >= R. So B is the answer wherever B < R (or every target
+    is a candidate); the other points are queried with upper bound B (scipy's cKDTree,
+    grouped by bound since it takes one per call)."""
+    candidates = np.asarray(candidates, dtype=np.int64).reshape(len(source), -1)
+    bound = np.full(len(source), np.inf)
+    for j in range(candidates.shape[1]):
+        bound = np.minimum(bound, np.abs(source - target[candidates[:, j]]).sum(axis=1))
+    radius = np.linalg.norm(source - target[candidates[:, -1]], axis=1)
+    open_ = np.flatnonzero(~(bound < radius * (1 - 1e-12)))
+    out = bound.copy()
+    if len(open_) == 0:
+        return out
+    distinct, _ = unique_rows(target)
+    if candidates.shape[1] >= len(distinct):
+        return out
+    tree = cKDTree(distinct)
+    order = open_[np.argsort(bound[open_], kind="stable")]
     for chunk in np.array_split(order, min(chunks, len(order))):
         ub = float(np.nextafter(bound[chunk].max(), np.inf))
         out[chunk], _ = tree.query(source[chunk], k=1, p=1, distance_upper_bound=ub, workers=-1)
@@ -52,16 +93,24 @@ def nearest_manhattan(source: np.ndarray, target: np.ndarray, euclidean_index: n
 @dataclass
 class Neighbours:
     """Nearest neighbours both ways: distances (metres) and indices, prediction -> GT
-    (``d_pg``, ``i_pg``, one per predicted point) and GT -> prediction (``d_gp``, ``i_gp``)."""
+    (``d_pg``, ``i_pg``, one per predicted point) and GT -> prediction (``d_gp``, ``i_gp``);
+    ``c_pg``, ``c_gp`` (N, k): the k Euclidean nearest, nearest first (for the Manhattan
+    figures; None: the nearest only)."""
 
     d_pg: np.ndarray
     i_pg: np.ndarray
     d_gp: np.ndarray
     i_gp: np.ndarray
+    c_pg: np.ndarray | None = None
+    c_gp: np.ndarray | None = None
 
     @classmethod
-    def compute(cls, pred: np.ndarray, gt: np.ndarray) -> "Neighbours":
-        return cls(*nearest(pred, gt), *nearest(gt, pred))
+    def compute(cls, pred: np.ndarray, gt: np.ndarray, candidates: int = CANDIDATES) -> "Neighbours":
+        c_pg, c_gp = knn(pred, gt, candidates), knn(gt, pred, candidates)
+        i_pg, i_gp = c_pg[:, 0], c_gp[:, 0]
+        d_pg = np.linalg.norm(pred - gt[i_pg], axis=1)
+        d_gp = np.linalg.norm(gt - pred[i_gp], axis=1)
+        return cls(d_pg, i_pg, d_gp, i_gp, c_pg, c_gp)
 
 
 def _ratio(num: float, den: float) -> float:
@@ -125,8 +174,8 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
         out["semantic"] = _semantic(np.asarray(pred_labels), np.asarray(gt_labels), d_pg, i_pg, d_gp, i_gp, tau,
                                     class_names)
     if paper_block:
-        l1_pg = nearest_manhattan(pred, gt, i_pg)
-        l1_gp = nearest_manhattan(gt, pred, i_gp)
+        l1_pg = nearest_manhattan(pred, gt, nn.c_pg if nn.c_pg is not None else i_pg)
+        l1_gp = nearest_manhattan(gt, pred, nn.c_gp if nn.c_gp is not None else i_gp)
         out["paper"] = {
             "note": "the paper's code: one direction at a time, Manhattan (L1) norm of the offset to the nearest "
                     "neighbour under that norm; not the symmetric Euclidean Chamfer-L1 above",

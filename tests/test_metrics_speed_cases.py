@@ -1,0 +1,94 @@
+"""Reconstruction metrics on degenerate inputs (duplicates, a single point) and their exact
+agreement with a plain scipy cKDTree computation (issue #13 case 6, #15)."""
+
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from evaluation.metrics import Neighbours, knn, nearest_manhattan, reconstruction_metrics, unique_rows
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _clouds(rng, n, m, duplicates):
+    # coordinates on a 0.1 m lattice: many exact ties and repeated points
+    pred = np.round(rng.uniform(0, 2, (n, 3)), 1)
+    gt = np.round(rng.uniform(0, 2, (m, 3)), 1)
+    if duplicates == "pred":
+        pred = np.repeat(pred[:1], n, axis=0)
+    elif duplicates == "gt":
+        gt = np.repeat(gt[:3], -(-m // 3), axis=0)[:m]
+    return pred, gt
+
+
+@pytest.mark.parametrize("duplicates", [None, "pred", "gt"])
+def test_neighbours_and_manhattan_equal_ckdtree(duplicates):
+    rng = np.random.default_rng(7)
+    for _ in range(15):
+        n, m = (int(v) for v in rng.integers(1, 400, 2))
+        pred, gt = _clouds(rng, n, m, duplicates)
+        nn = Neighbours.compute(pred, gt)
+        for src, tgt, d, i, cand in ((pred, gt, nn.d_pg, nn.i_pg, nn.c_pg), (gt, pred, nn.d_gp, nn.i_gp, nn.c_gp)):
+            tree = cKDTree(tgt)
+            d_ref = tree.query(src)[0]
+            np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
+            # the returned index is a nearest point (ties: any of them)
+            np.testing.assert_allclose(np.linalg.norm(src - tgt[i], axis=1), d_ref, rtol=0, atol=1e-12)
+            l1_ref = tree.query(src, p=1)[0]
+            np.testing.assert_allclose(nearest_manhattan(src, tgt, cand), l1_ref, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(nearest_manhattan(src, tgt, i), l1_ref, rtol=0, atol=1e-12)
+
+
+def test_unique_rows_and_knn_never_return_two_copies():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
+    distinct, first = unique_rows(pts)
+    assert first.tolist() == [0, 1, 4]
+    assert distinct.tolist() == [[0, 0, 0], [1, 0, 0], [2, 0, 0]]
+    assert unique_rows(distinct)[1] is None
+    idx = knn(np.array([[0.1, 0, 0]]), pts, 4)
+    assert idx.tolist() == [[0, 1, 4]]  # three distinct points only, first occurrences
+
+
+def test_single_point_against_a_cloud():
+    rng = np.random.default_rng(3)
+    gt = rng.uniform(-5, 5, (500, 3))
+    one = np.array([[0.5, -0.25, 1.0]])
+    out = reconstruction_metrics(one, gt)
+    d = np.linalg.norm(gt - one, axis=1)
+    assert out["accuracy"] == pytest.approx(d.min(), abs=1e-12)
+    assert out["completeness"] == pytest.approx(d.mean(), abs=1e-12)
+    l1 = np.abs(gt - one).sum(axis=1)
+    assert out["paper"]["chamfer_l1_manhattan_pred_to_gt"] == pytest.approx(l1.min(), abs=1e-12)
+    assert out["paper"]["chamfer_l1_manhattan_gt_to_pred"] == pytest.approx(l1.mean(), abs=1e-12)
+
+
+def test_100k_duplicate_points_score_in_seconds():
+    """100,000 copies of one point against 200,000 GT points, in a fresh process with a
+    generous time limit (the scoring used to take minutes: linear in the copies)."""
+    code = textwrap.dedent("""
+        import json, sys
+        import numpy as np
+        sys.path.insert(0, sys.argv[1])
+        from evaluation.metrics import reconstruction_metrics
+        rng = np.random.default_rng(0)
+        gt = rng.uniform(0, 10, (200_000, 3))
+        pred = np.repeat([[1.0, 2.0, 3.0]], 100_000, axis=0)
+        labels = rng.integers(0, 3, 200_000)
+        out = reconstruction_metrics(pred, gt, np.zeros(100_000, int), labels, class_names=["a", "b", "c"])
+        d = np.linalg.norm(gt - [1.0, 2.0, 3.0], axis=1)
+        l1 = np.abs(gt - [1.0, 2.0, 3.0]).sum(axis=1)
+        print(json.dumps([out["accuracy"], d.min(), out["completeness"], d.mean(),
+                          out["paper"]["chamfer_l1_manhattan_gt_to_pred"], l1.mean()]))
+    """)
+    res = subprocess.run([sys.executable, "-c", code, str(ROOT)], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr[-2000:]
+    acc, acc_ref, comp, comp_ref, l1, l1_ref = json.loads(res.stdout.strip().splitlines()[-1])
+    assert acc == pytest.approx(acc_ref, abs=1e-12)
+    assert comp == pytest.approx(comp_ref, rel=1e-12)
+    assert l1 == pytest.approx(l1_ref, rel=1e-12)
