@@ -30,6 +30,7 @@ from generator.geometry.sampling import ground_height, outward_normals, sample_p
 from generator.geometry.seeding import stream
 
 from . import FORMAT_VERSION
+from .hdf5 import CHECKSUM, H5_ERRORS, create_file, damaged, dataset, reason, text_attribute
 from .palette import label_colors
 from .ply import PlyData, read_ply, write_ply
 
@@ -123,28 +124,28 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
               faces=np.concatenate(faces), face={"label": np.concatenate(flabel), "instance": np.concatenate(finst)},
               comments=comments + ["objects at the first animation frame"])
 
-    with h5py.File(folder / "scene.h5", "w") as f:
-        f.attrs.update({"format_version": FORMAT_VERSION, "labels": json.dumps(labels), "fps": float(fps),
+    with create_file(folder / "scene.h5") as f:  # checksummed (exporters/hdf5.py): damage fails to read
+        f.attrs.update({"format_version": FORMAT_VERSION, "labels": text_attribute(json.dumps(labels)), "fps": float(fps),
                         "seed": int(seed), "points_density": float(points_density),
                         "scoring_density": float(scoring_density),
                         "conventions": "metres; world Z up; static parts in world coordinates, dynamic parts in "
                                        "their object frame; matrices world_from_object; camera OpenCV; "
                                        "near < planar depth <= far"})
         g = f.create_group("parts")
-        kw = {"compression": "gzip", "compression_opts": 4}
+        kw = {"compression": "gzip", "compression_opts": 4, **CHECKSUM}
         g.create_dataset("vertices", data=np.concatenate([p.vertices for p in parts]).astype(np.float64), **kw)
         g.create_dataset("faces", data=np.concatenate([p.faces for p in parts]).astype(np.int32), **kw)
-        g["vertex_offsets"] = np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64)
-        g["face_offsets"] = np.cumsum([0] + [len(p.faces) for p in parts]).astype(np.int64)
-        g["name"] = np.array([p.name for p in parts], dtype=h5py.string_dtype())
-        g["source"] = np.array([p.source for p in parts], dtype=h5py.string_dtype())
-        g["label"] = np.array([label_ids[p.label] for p in parts], np.int32)
-        g["dynamic"] = np.array([p.dynamic for p in parts], bool)
-        g["closed"] = np.array([p.closed for p in parts], bool)
-        g["outward"] = np.array([p.outward for p in parts], np.int8)
+        dataset(g, "vertex_offsets", np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64))
+        dataset(g, "face_offsets", np.cumsum([0] + [len(p.faces) for p in parts]).astype(np.int64))
+        dataset(g, "name", np.array([p.name for p in parts], dtype=object))  # fixed-length UTF-8 bytes
+        dataset(g, "source", np.array([p.source for p in parts], dtype=object))
+        dataset(g, "label", np.array([label_ids[p.label] for p in parts], np.int32))
+        dataset(g, "dynamic", np.array([p.dynamic for p in parts], bool))
+        dataset(g, "closed", np.array([p.closed for p in parts], bool))
+        dataset(g, "outward", np.array([p.outward for p in parts], np.int8))
         a = f.create_group("animation")
-        a["frames"] = frames
-        a["dynamic_parts"] = np.asarray(dyn, np.int32)
+        dataset(a, "frames", np.asarray(frames))
+        dataset(a, "dynamic_parts", np.asarray(dyn, np.int32))
         a.create_dataset("world_from_object", data=matrices, **kw)
         s = f.create_group("surface_points")
         s.attrs["density"] = float(points_density)
@@ -154,14 +155,14 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
         s.create_dataset("label", data=np.asarray(surface["labels"], np.int32), **kw)
         s.create_dataset("observable", data=np.asarray(surface["observable"], bool), **kw)
         o = f.create_group("observability")
-        o["viewpoints"] = viewpoints
+        dataset(o, "viewpoints", np.asarray(viewpoints))
         o.attrs.update({"rule": "visible from at least one viewpoint, looking in any direction, under the "
                                 "simulator's visibility rules with no depth limit, objects at the first frame "
                                 "(generator/geometry/observability.py)",
                         "scoring_points_observable": int(observable.sum()),
                         "scoring_points": int(len(observable))})
         cam = f.create_group("camera")
-        cam["K"] = np.asarray(K, np.float64)
+        dataset(cam, "K", np.asarray(K, np.float64))
         cam.attrs.update({"width": int(width), "height": int(height), "near": float(near), "far": float(far)})
     return folder
 
@@ -269,5 +270,7 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
             return GroundTruthScene(folder, labels, parts, frames, dyn, mats, surface, cam["K"][()],
                                     int(cam.attrs["width"]), int(cam.attrs["height"]), float(cam.attrs["near"]),
                                     float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]), viewpoints)
-    except (OSError, KeyError) as exc:
-        raise GroundTruthError(f"{folder / 'scene.h5'}: unreadable ground truth ({exc.__class__.__name__}: {exc})") from exc
+    except GroundTruthError:
+        raise
+    except H5_ERRORS as exc:  # a failed checksum, or damaged metadata wherever h5py looks
+        raise GroundTruthError(str(damaged(folder / "scene.h5", reason(exc)))) from None

@@ -162,13 +162,27 @@ def _same(a, b) -> bool:
     return a == b
 
 
+def test_flipped_bytes_in_scene_h5_stop_coverage_scoring(seed_folder, tmp_path):
+    copy = tmp_path / "seed"
+    shutil.copytree(seed_folder, copy)
+    h5 = copy / "ground_truth" / "scene.h5"
+    pristine = h5.read_bytes()
+    for name in ("camera/K", "surface_points/local", "parts/vertices"):
+        h5.write_bytes(pristine)
+        offset, size = chunk_offset(h5, name)
+        flip(h5, offset + size // 2)
+        assert_refused(cli("coverage", "--gt", copy, "--trajectory", copy / "orbit" / "trajectory.npz"),
+                       "scene.h5: damaged file", "regenerate")
+
+
 def test_tracks_h5_checksums_cover_every_dataset(seed_folder):
-    with h5py.File(seed_folder / "orbit" / "tracks.h5", "r") as f:
-        unprotected = []
-        f.visititems(lambda name, obj: unprotected.append(name)
-                     if isinstance(obj, h5py.Dataset) and not obj.fletcher32 else None)
-        assert unprotected == []
-        assert isinstance(f.attrs["labels"], bytes)  # fixed-length: inside the checksummed object header
+    for path in (seed_folder / "orbit" / "tracks.h5", seed_folder / "ground_truth" / "scene.h5"):
+        with h5py.File(path, "r") as f:
+            unprotected = []
+            f.visititems(lambda name, obj: unprotected.append(name)
+                         if isinstance(obj, h5py.Dataset) and not obj.fletcher32 else None)
+            assert unprotected == [], path
+            assert isinstance(f.attrs["labels"], bytes)  # fixed-length: inside the checksummed object header
 
 
 def test_damaged_exr_names_the_file_and_what_to_do(seed_folder, tmp_path):
