@@ -20,6 +20,7 @@ from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.parts import MeshPart
 from .geometry.observability import default_viewpoints, observable_mask
+from .geometry.raycam import GeometricRender, RayCamera, RayGeometry, geometric_render, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -125,6 +126,8 @@ class Simulator(PaperAPI):
         self._points = SurfacePoints(self._parts, self.label_ids, self.points_density, self.seed)
         self._pass_table = assign_pass_indices(self._parts, self.label_ids)
         self._renderer: Renderer | None = None
+        self._raycam: RayCamera | None = None  # render(engine="raycast"), built on first use
+        self._ray_geometry: RayGeometry | None = None
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self.last_visibility = VisibilityStats()
@@ -409,12 +412,17 @@ class Simulator(PaperAPI):
             for i, p in enumerate(self._parts)
         ]
 
-    def render(self) -> RenderOutput:
+    def render(self, engine: str | None = None) -> RenderOutput:
         """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
 
         See :class:`generator.passes.RenderOutput` for shapes, units and conventions; the
-        returned object also holds ``instance`` and ``rgb_linear``.
+        returned object also holds ``instance`` and ``rgb_linear``. ``engine="raycast"``
+        returns :meth:`render_geometry` instead (no Blender render, no RGB).
         """
+        if engine == "raycast":
+            return self.render_geometry()
+        if engine is not None:
+            raise ValueError(f"engine must be None (the scene's Blender engine) or 'raycast', got {engine!r}")
         self._check_current()
         if self._renderer is None:
             self._renderer = Renderer()
@@ -431,6 +439,23 @@ class Simulator(PaperAPI):
         return RenderOutput(
             raw.rgb_display, raw.depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
         )
+
+    def render_geometry(self, normals: bool = True) -> GeometricRender:
+        """The current view by ray casting the Simulator's geometry, one ray per pixel centre,
+        no Blender render: depth, seg and instance with the conventions of :meth:`render`
+        (``segmentation_sensitivity`` 0), ``normal`` (H, W, 3) camera-frame unit normals
+        facing the camera (None without ``normals``), and ``rgb`` = ``rgb_linear`` = None
+        (colour needs a renderer). Objects in ``filter_object_names`` are not seen (rays
+        pass through them). See generator/geometry/raycam.py."""
+        self._check_current()
+        args = (self.K, self.width, self.height, self.clip_start, self.clip_end)
+        if self._raycam is None or not self._raycam.matches(*args):
+            self._raycam = RayCamera(*args)
+        if self._ray_geometry is None:
+            self._ray_geometry = RayGeometry(self._geometry.parts)
+        hits = self._raycam.cast(self._ray_geometry, self._world_from_camera, normals=normals)
+        label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
+        return geometric_render(hits, label_of_part, self.K, self._world_from_camera, self.frame)
 
     def _pass_index_by_rays(self) -> np.ndarray:
         """Pass index of the surface through each pixel centre, by ray casting our own

@@ -1,0 +1,318 @@
+"""``buildee/Exploration-v0``: next-best-view exploration as a Gymnasium environment.
+
+Observations come from the geometric camera (``Simulator.render(engine="raycast")``, one
+ray per pixel centre, no Blender render); the reward is the paper's coverage gain x 100.
+Blender holds one scene per process: one environment per process (use
+``gymnasium.vector.AsyncVectorEnv`` for several). See docs/envs.md.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ..geometry.camera import heading_pose
+from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
+from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
+
+MAX_LABEL_ID = 255  # upper bound of the label observation (ids index Simulator.labels)
+COVERAGE_SETS = ("all", "observable")
+STARTS = ("default", "random")
+
+
+class ExplorationEnv(gym.Env):
+    """Explore a construction site; reward = 100 x the share of surface points newly seen.
+
+    Args (keywords):
+        seeds: procedural site seeds (built once, cached in ``cache_dir``); and/or
+        blend_files: paths of .blend scenes. Each episode uses one scene, drawn with the
+            episode's random generator (so ``reset(seed=s)`` fixes it).
+        scene_preset: preset of the procedural sites ('small', 'medium', 'large').
+        resolution: (width, height) of the observations in pixels (default 128x128).
+        action_space: 'discrete' (the paper's five actions) or 'continuous' (a Box of 5).
+        step: metres per move; angle: degrees per turn (the paper's 3 m and 22.5 deg).
+        max_steps: the episode is truncated after this many steps (the paper's 500).
+        max_depth: surface points count as seen only within this planar depth (metres).
+        points_density: surface points per square metre (the paper's 5).
+        coverage: 'all' points (the paper's reward) or 'observable' ones only
+            (``Simulator.observable_points_mask``).
+        collision_penalty: subtracted from the reward of a refused move (default 0, the paper).
+        start: 'default' (a site's entrance pose as in the baselines, or the .blend's
+            camera) or 'random' (a free spawn point and heading drawn per episode).
+        rgb: also observe 'rgb' (H, W, 3) uint8 from a Cycles ``render()`` (seconds per step).
+        render_preset: Cycles preset for ``rgb`` ('preview', 'default', 'high').
+        cache_dir: where built sites are kept (default ~/.cache/buildee/sites).
+        render_mode: None or 'rgb_array' (depth and labels side by side, or the RGB).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(self, seeds=(), blend_files=(), scene_preset: str = "medium", resolution=(128, 128),
+                 action_space: str = "discrete", step: float = 3.0, angle: float = 22.5, max_steps: int = 500,
+                 max_depth: float = 20.0, points_density: float = 5.0, coverage: str = "all",
+                 collision_penalty: float = 0.0, start: str = "default", rgb: bool = False,
+                 render_preset: str = "preview", cache_dir: str | os.PathLike | None = None,
+                 render_mode: str | None = None):
+        super().__init__()
+        self.width, self.height = _resolution(resolution)
+        self.step_m = _positive("step", step)
+        self.angle = _positive("angle", angle)
+        if self.angle > 180:
+            raise ValueError(f"angle must be in (0, 180] degrees, got {angle!r}")
+        self.max_steps = _count("max_steps", max_steps)
+        self.max_depth = _positive("max_depth", max_depth, allow_inf=True)
+        self.points_density = _positive("points_density", points_density)
+        self.collision_penalty = _number("collision_penalty", collision_penalty)
+        self.coverage_set = _choice("coverage", coverage, COVERAGE_SETS)
+        self.start_rule = _choice("start", start, STARTS)
+        self.rgb, self.render_preset = bool(rgb), render_preset
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.scene_preset = scene_preset
+        self.cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+        self._sources = _sources(seeds, blend_files)
+        self._scenes: dict[int, SceneSpec] = {}
+
+        self.action_kind = _choice("action_space", action_space, ("discrete", "continuous"))
+        if self.action_kind == "discrete":
+            self.action_space = spaces.Discrete(5)
+        else:
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(len(CONTINUOUS_FIELDS),), dtype=np.float32)
+        h, w = self.height, self.width
+        obs = {
+            "depth": spaces.Box(0.0, np.inf, shape=(h, w), dtype=np.float32),
+            "label": spaces.Box(-1, MAX_LABEL_ID, shape=(h, w), dtype=np.int32),
+            "pose": spaces.Box(-np.inf, np.inf, shape=(4, 4), dtype=np.float64),
+            "coverage": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float64),
+        }
+        if self.rgb:
+            obs["rgb"] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
+        self.observation_space = spaces.Dict(obs)
+
+        self.sim = None  # the Simulator of the current scene
+        self.scene: SceneSpec | None = None
+        self._subset: np.ndarray | None = None  # points the coverage counts (None: all)
+        self._n_subset = 1
+        self._seen = 0
+        self._steps = 0
+        self._last_obs: dict | None = None
+
+    # ---- scenes ------------------------------------------------------------------------
+    @property
+    def num_scenes(self) -> int:
+        return len(self._sources)
+
+    def scene_spec(self, index: int) -> SceneSpec:
+        """The scene ``index`` (building a procedural site on first use)."""
+        if index not in self._scenes:
+            kind, value = self._sources[index]
+            self._scenes[index] = (site_scene(value, self.scene_preset, self.cache_dir) if kind == "seed"
+                                   else blend_scene(value))
+        return self._scenes[index]
+
+    def _load(self, index: int) -> None:
+        spec = self.scene_spec(index)
+        if self.sim is not None and self.scene is spec:
+            return
+        Simulator = _simulator_class()
+        self.sim = None  # Blender holds one scene: drop the old Simulator first
+        sim = Simulator(spec.blend, points_density=self.points_density, max_pcl_depth=self.max_depth, seed=spec.seed)
+        sim.configure_render(self.render_preset if self.rgb else None, resolution=(self.width, self.height))
+        if len(sim.labels) > MAX_LABEL_ID + 1:
+            raise ValueError(f"{spec.blend} has {len(sim.labels)} labels; the label observation holds at most "
+                             f"{MAX_LABEL_ID + 1}")
+        sim.set_frame(sim.frame_range[0])  # the scene stands still at its first animation frame
+        if spec.start is None:
+            spec = SceneSpec(spec.name, spec.blend, sim.get_world_from_camera(), spec.bounds, spec.seed)
+            self._scenes[index] = spec
+        if self.coverage_set == "observable":
+            self._subset = sim.observable_points_mask
+            self._n_subset = max(int(self._subset.sum()), 1)
+        else:
+            self._subset, self._n_subset = None, max(sim.num_points, 1)
+        self.sim, self.scene = sim, spec
+
+    def _start_pose(self) -> np.ndarray:
+        spec, sim = self.scene, self.sim
+        if self.start_rule == "default":
+            return spec.start
+        _, pitch = heading_and_pitch(spec.start)
+        for _ in range(1000):
+            p = sim.spawn_points[int(self.np_random.integers(len(sim.spawn_points)))]
+            yaw = float(self.np_random.uniform(-math.pi, math.pi))
+            if spec.inside(p) and sim.is_free(p):
+                return heading_pose(p, yaw, pitch)
+        raise RuntimeError(f"{spec.name}: no free spawn point found in 1000 draws; use start='default'")
+
+    # ---- Gymnasium API ---------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self._load(int(self.np_random.integers(self.num_scenes)))
+        sim = self.sim
+        sim.set_world_from_camera(self._start_pose(), check_collisions=False)
+        sim.reset_observations()
+        self._steps = 0
+        self._seen = 0
+        self._observe_points()
+        obs = self._observation()
+        return obs, self._info(False)
+
+    def step(self, action):
+        if self.sim is None:
+            raise RuntimeError("call reset() before step()")
+        collided = self._act(action)
+        self._steps += 1
+        gain = self._observe_points()
+        reward = 100.0 * gain / self._n_subset - (self.collision_penalty if collided else 0.0)
+        obs = self._observation()
+        truncated = self._steps >= self.max_steps
+        return obs, float(reward), False, truncated, self._info(collided)
+
+    def render(self):
+        if self.render_mode != "rgb_array" or self._last_obs is None:
+            return None
+        if "rgb" in self._last_obs:
+            return self._last_obs["rgb"].copy()
+        return _preview(self._last_obs["depth"], self._last_obs["label"], self.max_depth)
+
+    def close(self):
+        self.sim = None
+
+    # ---- steps -----------------------------------------------------------------------------
+    def _act(self, action) -> bool:
+        """Apply ``action``; True if its move was refused."""
+        sim, pose = self.sim, self.sim.get_world_from_camera()
+        if self.action_kind == "discrete":
+            target, is_move = discrete_target(pose, _discrete(action), self.step_m, self.angle)
+            if not is_move:
+                return sim.set_world_from_camera(target, check_collisions=False)
+            return not self.scene.inside(target[:3, 3]) or sim.set_world_from_camera(target)
+        turned, moved = continuous_targets(pose, action, self.step_m, self.angle)
+        sim.set_world_from_camera(turned, check_collisions=False)
+        if np.array_equal(moved[:3, 3], turned[:3, 3]):
+            return False
+        return not self.scene.inside(moved[:3, 3]) or sim.set_world_from_camera(moved)
+
+    def _observe_points(self) -> int:
+        """Update the observed points from the current pose; returns how many points of the
+        coverage set were seen for the first time."""
+        sim = self.sim
+        sim.compute_point_cloud(update_mask=True)
+        seen = sim.observed_points_mask
+        n = int(np.count_nonzero(seen if self._subset is None else seen & self._subset))
+        gain, self._seen = n - self._seen, n
+        return gain
+
+    def _observation(self) -> dict:
+        view = self.sim.render_geometry(normals=False)
+        obs = {"depth": view.depth, "label": view.seg, "pose": view.world_from_camera,
+               "coverage": np.array([self.coverage], dtype=np.float64)}
+        if self.rgb:
+            obs["rgb"] = (np.clip(self.sim.render().rgb, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+        self._last_obs = obs
+        return obs
+
+    @property
+    def coverage(self) -> float:
+        """Share (0..1) of the coverage set's points seen so far in this episode."""
+        return self._seen / self._n_subset
+
+    def _info(self, collided: bool) -> dict:
+        return {"collided": bool(collided), "coverage": self.coverage, "steps": self._steps,
+                "scene": self.scene.name}
+
+
+def _simulator_class():
+    """``generator.Simulator``, importable in a process started by multiprocessing's spawn or
+    forkserver (``AsyncVectorEnv`` workers): such a process inherits its parent's sys.path,
+    where an imported Blender put its scripts folders, whose ``bpy`` package shadows the real
+    module until Blender is loaded. Blender adds them back when it loads."""
+    if "bpy" not in sys.modules:
+        marker = f"{os.sep}bpy{os.sep}"
+        sys.path[:] = [p for p in sys.path if not (marker in p and f"{os.sep}scripts" in p)]
+    from .. import Simulator
+
+    return Simulator
+
+
+# ---- argument checks ----------------------------------------------------------------------
+def _number(name: str, value) -> float:
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if math.isnan(v):
+        raise ValueError(f"{name} must be a number, got NaN")
+    return v
+
+
+def _positive(name: str, value, allow_inf: bool = False) -> float:
+    v = _number(name, value)
+    if not (v > 0) or (math.isinf(v) and not allow_inf):
+        raise ValueError(f"{name} must be a positive{'' if allow_inf else ' finite'} number, got {value!r}")
+    return v
+
+
+def _count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def _choice(name: str, value, choices) -> str:
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(repr(c) for c in choices)}, got {value!r}")
+    return value
+
+
+def _resolution(value) -> tuple[int, int]:
+    try:
+        w, h = value
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution must be (width, height) in pixels, got {value!r}") from None
+    if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= 4096 for v in (w, h)):
+        raise ValueError(f"resolution must be two integers in 1..4096 (width, height), got {value!r}")
+    return int(w), int(h)
+
+
+def _discrete(action) -> int:
+    if isinstance(action, np.ndarray) and action.shape == ():
+        action = action.item()
+    if isinstance(action, bool) or not isinstance(action, (int, np.integer)) or not 0 <= action <= 4:
+        raise ValueError(f"action must be an integer in 0..4 (forward, left, right, turn left, turn right), got {action!r}")
+    return int(action)
+
+
+def _sources(seeds, blend_files) -> list[tuple[str, object]]:
+    if isinstance(seeds, (int, np.integer)) or isinstance(blend_files, (str, os.PathLike)):
+        raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend'])")
+    out: list[tuple[str, object]] = []
+    for s in seeds:
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
+            raise ValueError(f"seeds must be non-negative integers, got {s!r}")
+        out.append(("seed", int(s)))
+    out += [("blend", Path(p)) for p in blend_files]
+    if not out:
+        raise ValueError("no scenes: pass seeds=[...] (procedural sites) and/or blend_files=[...]")
+    return out
+
+
+def _preview(depth: np.ndarray, label: np.ndarray, max_depth: float) -> np.ndarray:
+    """(H, 2W, 3) uint8: depth (near bright, black past ``max_depth`` or no surface) beside
+    the labels in fixed colours (black: unlabelled)."""
+    far = max_depth if math.isfinite(max_depth) else float(np.nanmax(np.where(np.isfinite(depth), depth, np.nan), initial=1.0))
+    d = np.where(np.isfinite(depth) & (depth <= far), 1.0 - depth / max(far, 1e-9), 0.0)
+    grey = np.repeat((d * 255 + 0.5).astype(np.uint8)[..., None], 3, axis=2)
+    hue = (np.arange(MAX_LABEL_ID + 1) * 0.618034) % 1.0
+    palette = (np.stack([np.abs(hue * 6 - 3) - 1, 2 - np.abs(hue * 6 - 2), 2 - np.abs(hue * 6 - 4)], 1).clip(0, 1) * 255)
+    colours = np.where(label[..., None] >= 0, palette.astype(np.uint8)[np.clip(label, 0, MAX_LABEL_ID)], 0).astype(np.uint8)
+    return np.concatenate([grey, colours], axis=1)

@@ -1,0 +1,170 @@
+"""A geometric camera: depth, labels, instances and normals by ray casting, no renderer.
+
+One ray leaves the camera centre through each pixel centre (x, y) = (j + 0.5, i + 0.5)
+and stops at the first triangle of the scene's geometry (open3d / Embree, on the same
+rigid parts as the Simulator's visibility and collisions). The conventions are those of
+``Simulator.render()`` (docs/conventions.md):
+
+- depth: (H, W) float32 planar depth (camera-frame z) in metres, +inf where no surface;
+  like Cycles, surfaces are clipped by planar depth at ``clip_start`` (the ray starts
+  there, so a surface nearer than it is seen through) and ``clip_end`` (no surface past it);
+- seg: (H, W) int32 label ids (index into ``Simulator.labels``), -1 where no surface;
+- instance: (H, W) int32 object ids (index into ``Simulator.object_names``), -1 = none;
+- normal: (H, W, 3) float32 unit normal of the triangle hit, in the OpenCV camera frame
+  (x right, y down, z forward), turned to face the camera; zero where no surface.
+
+There is no RGB (``rgb`` and ``rgb_linear`` are None): colour needs a renderer. Labels are
+those of the surface at the pixel centre, as ``render()`` with ``segmentation_sensitivity``
+0. bpy-free (numpy and open3d).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..passes import RenderOutput
+from .camera import pixel_rays
+from .o3d import import_open3d
+from .parts import MeshPart
+
+o3d = import_open3d()
+
+
+@dataclass
+class GeometricRender(RenderOutput):
+    """What ``Simulator.render(engine="raycast")`` returns: a :class:`RenderOutput` (it
+    unpacks as ``rgb, depth, seg``) with ``rgb`` and ``rgb_linear`` None and, in addition,
+    ``normal`` (H, W, 3) float32 (see the module's docstring for every convention)."""
+
+    normal: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PixelHits:
+    """First surface through each pixel centre: ``depth`` (H, W) float32 planar metres (+inf
+    for none), ``part`` (H, W) int64 part index (-1 for none), ``normal`` (H, W, 3) float32
+    camera-frame unit normals facing the camera (zero for none) or None if not asked."""
+
+    depth: np.ndarray
+    part: np.ndarray
+    normal: np.ndarray | None
+
+
+class RayCamera:
+    """Casts the pixel-centre rays of a pinhole camera ``K`` (3x3, pixels) with an image of
+    ``width`` x ``height`` pixels and the clip range ``[clip_start, clip_end]`` (planar
+    metres). The camera-frame rays are computed once."""
+
+    def __init__(self, K: np.ndarray, width: int, height: int, clip_start: float = 0.0, clip_end: float = np.inf):
+        K = np.asarray(K, dtype=np.float64)
+        if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise ValueError(f"K must be a finite 3x3 pinhole matrix with positive focal lengths, got {K.tolist()}")
+        if int(width) < 1 or int(height) < 1:
+            raise ValueError(f"image size must be at least 1x1 pixels, got {width}x{height}")
+        if not (0.0 <= clip_start < clip_end):
+            raise ValueError(f"clip range must satisfy 0 <= clip_start < clip_end, got {clip_start}, {clip_end}")
+        self.K, self.width, self.height = K.copy(), int(width), int(height)
+        self.clip_start, self.clip_end = float(clip_start), float(clip_end)
+        self._rays = np.ascontiguousarray(pixel_rays(K, self.width, self.height).reshape(-1, 3))  # camera z = 1
+
+    def matches(self, K: np.ndarray, width: int, height: int, clip_start: float, clip_end: float) -> bool:
+        """True if this camera was built for these intrinsics, size and clip range."""
+        return (int(width), int(height), float(clip_start), float(clip_end)) == (
+            self.width, self.height, self.clip_start, self.clip_end) and np.array_equal(K, self.K)
+
+    def cast(self, geometry: "RayGeometry", world_from_camera: np.ndarray, normals: bool = True) -> PixelHits:
+        """First hits of every pixel-centre ray from the pose ``world_from_camera`` (4x4)."""
+        pose = np.asarray(world_from_camera, dtype=np.float64)
+        rot = pose[:3, :3]
+        dirs = self._rays @ rot.T  # world directions with unit camera-frame z: t = planar depth
+        origins = pose[:3, 3] + self.clip_start * dirs  # the ray starts on the near clip plane
+        t, part, normal = geometry.cast(origins, dirs)
+        depth = t + self.clip_start
+        hit = (part >= 0) & np.isfinite(t) & (depth <= self.clip_end)
+        h, w = self.height, self.width
+        depth_img = np.where(hit, depth, np.inf).astype(np.float32).reshape(h, w)
+        part_img = np.where(hit, part, -1).reshape(h, w)
+        normal_img = None
+        if normals:
+            n = normal.astype(np.float64) @ rot  # world -> camera frame
+            n *= np.where(np.einsum("ij,ij->i", n, self._rays) > 0, -1.0, 1.0)[:, None]  # face the camera
+            normal_img = np.where(hit[:, None], n, 0.0).astype(np.float32).reshape(h, w, 3)
+        return PixelHits(depth_img, part_img, normal_img)
+
+
+class RayGeometry:
+    """First-hit ray casting with triangle normals on rigid mesh parts (open3d / Embree).
+
+    Built from the parts the Simulator holds (``SceneGeometry.parts``, the same objects, so
+    the same triangles as visibility and collisions use): static parts once, dynamic
+    parts again whenever their ``matrix`` changed since the last cast.
+    """
+
+    def __init__(self, parts: list[MeshPart]):
+        self.parts = parts
+        self._static, self._static_ids = _structure([i for i, p in enumerate(parts) if not p.dynamic], parts)
+        self._dynamic_index = [i for i, p in enumerate(parts) if p.dynamic]
+        self._dynamic, self._dynamic_ids, self._matrices = None, np.zeros(0, np.int64), None
+
+    def _current_dynamic(self):
+        if self._dynamic_index:
+            mats = np.stack([self.parts[i].matrix for i in self._dynamic_index])
+            if self._matrices is None or not np.array_equal(mats, self._matrices):
+                self._dynamic, self._dynamic_ids = _structure(self._dynamic_index, self.parts)
+                self._matrices = mats
+        return self._dynamic
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """First hits: t (N,) float64 in units of each direction's length (inf: miss), part
+        index (N,) int64 (-1: miss), unit normal (N, 3) float32 of the triangle hit in the
+        world frame, either side (zero: miss)."""
+        n = len(directions)
+        rays = np.empty((n, 6), dtype=np.float32)
+        rays[:, :3] = origins
+        rays[:, 3:] = directions
+        t_rays = o3d.core.Tensor.from_numpy(rays)
+        best_t = np.full(n, np.inf)
+        part = np.full(n, -1, dtype=np.int64)
+        normal = np.zeros((n, 3), dtype=np.float32)
+        for scene, ids in ((self._static, self._static_ids), (self._current_dynamic(), self._dynamic_ids)):
+            if scene is None:
+                continue
+            ans = scene.cast_rays(t_rays)
+            t = ans["t_hit"].numpy().astype(np.float64)
+            closer = t < best_t
+            best_t[closer] = t[closer]
+            part[closer] = ids[ans["geometry_ids"].numpy()[closer].astype(np.int64)]
+            normal[closer] = ans["primitive_normals"].numpy()[closer]
+        return best_t, part, normal
+
+
+def _structure(index: list[int], parts: list[MeshPart]):
+    """(open3d RaycastingScene of the parts ``index`` at their current matrices or None,
+    part index of each geometry id)."""
+    scene, ids = o3d.t.geometry.RaycastingScene(), []
+    for i in index:
+        p = parts[i]
+        if len(p.faces) == 0:
+            continue
+        scene.add_triangles(o3d.core.Tensor.from_numpy(np.ascontiguousarray(p.world_vertices(), dtype=np.float32)),
+                            o3d.core.Tensor.from_numpy(np.ascontiguousarray(p.faces, dtype=np.uint32)))
+        ids.append(i)
+    return (scene if ids else None), np.asarray(ids, dtype=np.int64)
+
+
+def labels_of_parts(part_labels: list[str], label_ids: dict[str, int]) -> np.ndarray:
+    """Label id (P,) int32 of each part, from the part's label name."""
+    return np.array([label_ids[name] for name in part_labels], dtype=np.int32).reshape(-1)
+
+
+def geometric_render(hits: PixelHits, label_of_part: np.ndarray, K: np.ndarray, world_from_camera: np.ndarray,
+                     frame: int) -> GeometricRender:
+    """A :class:`GeometricRender` from pixel hits; ``label_of_part`` (P,) int32 maps part
+    indices (= instance ids) to label ids."""
+    inst = hits.part.astype(np.int32)
+    seg = np.where(inst >= 0, label_of_part[np.maximum(inst, 0)], -1).astype(np.int32)
+    return GeometricRender(rgb=None, depth=hits.depth, seg=seg, instance=inst, rgb_linear=None,
+                           K=np.array(K, dtype=np.float64), world_from_camera=np.array(world_from_camera, dtype=np.float64),
+                           frame=int(frame), normal=hits.normal)
