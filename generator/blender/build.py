@@ -39,14 +39,27 @@ def mesh_from_data(name: str, data: MeshData, seed: int):
     return me
 
 
-def _make_linear(obj) -> None:
+def _insert_linear_keys(obj, frames: np.ndarray, channels: dict) -> None:
+    """Linear keyframes on ``obj``: for each data path in ``channels`` (values (K, 3) at
+    ``frames`` (K,)), one F-curve per component. One keyframe_insert per path creates the
+    action, slot and F-curves; the remaining keys are written in bulk (keyframe_insert per
+    frame costs more than linear time in the frame count)."""
+    for path, values in channels.items():
+        setattr(obj, path, tuple(values[0]))
+        obj.keyframe_insert(path, frame=float(frames[0]))
     ad = obj.animation_data
-    if ad is None or ad.action is None:
-        return
     bag = anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot)
     for fc in bag.fcurves:
+        values = channels.get(fc.data_path)
+        if values is None:
+            continue
+        co = np.empty(2 * len(frames), dtype=np.float64)
+        co[0::2], co[1::2] = frames, values[:, fc.array_index]
+        fc.keyframe_points.add(len(frames) - len(fc.keyframe_points))
+        fc.keyframe_points.foreach_set("co", co)
         for kp in fc.keyframe_points:
             kp.interpolation = "LINEAR"
+        fc.update()
 
 
 def _collection(name: str):
@@ -82,15 +95,14 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
             obj.parent = objects[part.parent]
         if part.keys is not None:
             k = part.keys
-            for i, frame in enumerate(k.frames):
-                kl = k.location[i] if k.location is not None else part.location
-                kr = k.rotation[i] if k.rotation is not None else part.rotation
-                obj.location, obj.rotation_euler = place(tuple(kl), tuple(kr))
-                if k.location is not None:
-                    obj.keyframe_insert("location", frame=float(frame))
-                if k.rotation is not None:
-                    obj.keyframe_insert("rotation_euler", frame=float(frame))
-            _make_linear(obj)
+            placed = [place(tuple(k.location[i] if k.location is not None else part.location),
+                            tuple(k.rotation[i] if k.rotation is not None else part.rotation))
+                      for i in range(len(k.frames))]
+            channels = {"location": np.array([p[0] for p in placed], dtype=np.float64),
+                        "rotation_euler": np.array([p[1] for p in placed], dtype=np.float64)}
+            keyed = [path for path, given in (("location", k.location), ("rotation_euler", k.rotation))
+                     if given is not None]
+            _insert_linear_keys(obj, np.asarray(k.frames, dtype=np.float64), {p: channels[p] for p in keyed})
             if k.location is None:  # channels without keys keep the rest transform
                 obj.location = loc
             if k.rotation is None:
