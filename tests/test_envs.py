@@ -198,3 +198,20 @@ def test_async_vector_env_steps_and_resets(rooms):
         assert np.all(infos["steps"] == 0)
     finally:
         envs.close()
+
+
+def test_modified_random_walk_turns_only_after_a_blocked_forward_move(rooms):
+    from generator.envs.policies import FORWARD, TURN_LEFT, TURN_RIGHT, ModifiedRandomWalk
+
+    env = make(rooms[1:], max_steps=20)
+    obs, info = env.reset(seed=0)
+    policy, actions, collided = ModifiedRandomWalk(angle=22.5, seed=3), [], []
+    for _ in range(20):
+        actions.append(policy(obs, info))
+        obs, _, _, _, info = env.step(actions[-1])
+        collided.append(info["collided"])
+    assert actions[0] == FORWARD and collided[0]  # the wall is 1.5 m ahead
+    for k in range(1, 20):
+        if actions[k] != FORWARD:
+            assert actions[k] in (TURN_LEFT, TURN_RIGHT) and (collided[k - 1] or actions[k - 1] == actions[k])
+    assert actions[1] != FORWARD and FORWARD in actions[2:]
