@@ -7,6 +7,7 @@ import pytest
 
 import scenes
 from generator import Simulator
+from generator.geometry.camera import project as cam_project
 from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
 from generator.geometry.visibility import ViewLimits, visible_points
@@ -123,3 +124,37 @@ def test_dynamic_occluder_hides_points():
     assert visible_points(geo, probe, None, None, pose, K, 64, 48)[0]
     geo.set_matrices({1: moved})
     assert not visible_points(geo, probe, None, None, pose, K, 64, 48)[0]
+
+
+@pytest.fixture(scope="module")
+def small_site(tmp_path_factory):
+    from generator.scene import build_site
+
+    result = build_site(3, "small", tmp_path_factory.mktemp("site"), preview=False, frames=20)
+    return Simulator(result.blend, points_density=20.0, seed=0, max_pcl_depth=60.0)
+
+
+def test_tile_ordered_rays_equal_one_ray_per_point_on_a_site(small_site):
+    """The fast path (rays in screen-tile order) gives exactly the ray-per-point answer on a
+    generated site, from the poses of its orbit and spline trajectories."""
+    from generator.batch.config import plan_trajectory
+
+    sim = small_site
+    geo = SceneGeometry(sim.scene_parts())
+    points, _, _ = sim.compute_point_cloud(update_mask=False)
+    poses = []
+    for kind in ("orbit", "spline"):
+        poses += list(plan_trajectory(kind, sim, sim.spawn_points, sim.get_world_from_camera(), 0, 12, sim.fps).poses)
+    limits = ViewLimits(sim.clip_start, min(sim.clip_end, sim.max_pcl_depth))
+    visible = hidden = 0
+    for pose in poses:
+        args = (geo, points, None, None, pose, sim.K, sim.width, sim.height, limits)
+        fast = visible_points(*args)
+        ref = visible_points(*args, ray_per_point=True)
+        assert np.array_equal(fast, ref)
+        uv, z = cam_project(points, pose, sim.K)
+        in_view = (z > limits.near) & (z <= limits.far) & (uv[:, 0] >= 0) & (uv[:, 0] < sim.width) & (
+            uv[:, 1] >= 0) & (uv[:, 1] < sim.height)
+        visible += int(fast.sum())
+        hidden += int((in_view & ~fast).sum())
+    assert visible > 1000 and hidden > 1000  # both answers are exercised
