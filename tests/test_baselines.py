@@ -94,6 +94,20 @@ def test_modified_walk_boxed_in_stays_after_max_draws():
     np.testing.assert_allclose(traj.positions, np.broadcast_to(start[:3, 3], (4, 3)))
 
 
+def test_random_walk_with_the_paper_codes_actions():
+    from trajectories import PAPER_CODE_ACTIONS, random_walk
+
+    start = look_at((0.0, 0.0, 1.5), (0.0, 10.0, 1.5))
+    free = Box((-1e4, -1e4, 0), (1e4, 1e4, 3))
+    ours = random_walk(free, start, 400, np.random.default_rng(1))
+    paper = random_walk(free, start, 400, np.random.default_rng(1), actions=PAPER_CODE_ACTIONS)
+    assert "right" in ours.actions and "right" not in paper.actions
+    assert paper.actions.count("left") > 1.5 * paper.actions.count("forward")  # two of the five draws
+    assert paper.params["actions"] == list(PAPER_CODE_ACTIONS) and "actions" not in ours.params
+    with pytest.raises(ValueError, match="actions"):
+        random_walk(free, start, 3, np.random.default_rng(1), actions=("jump",))
+
+
 def test_entrance_start_pose_rule():
     from generator.baselines.start_pose import entrance_start_pose, find_gate, site_start
     from generator.scene import plan_site, site_params

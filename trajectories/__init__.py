@@ -5,9 +5,9 @@
 from .base import BoundedChecker, MotionChecker, Trajectory, TrajectoryError
 from .spline import spline_flythrough
 from .survey import lawnmower, orbit
-from .walks import ACTIONS, apply_action, modified_random_walk, random_walk
+from .walks import ACTIONS, PAPER_CODE_ACTIONS, apply_action, modified_random_walk, random_walk
 
 KINDS = ("random_walk", "modified_random_walk", "orbit", "lawnmower", "spline")
 
-__all__ = ["ACTIONS", "KINDS", "BoundedChecker", "MotionChecker", "Trajectory", "TrajectoryError", "apply_action", "lawnmower",
+__all__ = ["ACTIONS", "KINDS", "PAPER_CODE_ACTIONS", "BoundedChecker", "MotionChecker", "Trajectory", "TrajectoryError", "apply_action", "lawnmower",
            "modified_random_walk", "orbit", "random_walk", "spline_flythrough"]

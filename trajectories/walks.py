@@ -20,6 +20,9 @@ from generator.geometry.camera import translated_along_axis, turned_about_world_
 from .base import MotionChecker, Trajectory, timestamps
 
 ACTIONS = ("forward", "left", "right", "turn_left", "turn_right")
+# the five actions of the paper's evaluation code as written: its 'right' calls
+# move_camera_right(-3), a second left (kept to measure what that changes: docs/results.md)
+PAPER_CODE_ACTIONS = ("forward", "left", "left", "turn_right", "turn_left")
 
 
 def apply_action(pose: np.ndarray, action: str, step: float, angle_deg: float) -> np.ndarray:
@@ -54,18 +57,22 @@ def _check(steps: int, step: float, angle: float) -> None:
 
 
 def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.random.Generator,
-                step: float = 3.0, angle: float = 22.5, fps: float = 10.0) -> Trajectory:
-    """``steps`` actions drawn uniformly from the five; returns steps + 1 poses (start first).
-    Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
+                step: float = 3.0, angle: float = 22.5, fps: float = 10.0,
+                actions: tuple[str, ...] = ACTIONS) -> Trajectory:
+    """``steps`` actions drawn uniformly from ``actions`` (default: the five); returns
+    steps + 1 poses (start first). Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
     _check(steps, step, angle)
-    poses, actions = [np.array(start, dtype=np.float64)], []
+    if not actions or any(a not in ACTIONS for a in actions):
+        raise ValueError(f"actions must be a non-empty list drawn from {', '.join(ACTIONS)}, got {actions!r}")
+    choices = tuple(actions)
+    poses, taken = [np.array(start, dtype=np.float64)], []
     for _ in range(steps):
-        action = ACTIONS[int(rng.integers(len(ACTIONS)))]
+        action = choices[int(rng.integers(len(choices)))]
         pose, _ = _act(checker, poses[-1], action, step, angle)
         poses.append(pose)
-        actions.append(action)
-    return Trajectory(np.stack(poses), timestamps(len(poses), fps), "random_walk", actions,
-                      {"step_m": step, "angle_deg": angle, "fps": fps})
+        taken.append(action)
+    params = {"step_m": step, "angle_deg": angle, "fps": fps} | ({} if choices == ACTIONS else {"actions": list(choices)})
+    return Trajectory(np.stack(poses), timestamps(len(poses), fps), "random_walk", taken, params)
 
 
 MODIFIED_WALK_ACTIONS = ("forward", "turn_forward", "stuck")

@@ -26,6 +26,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     e.add_argument("--max-depth", type=positive_float("a positive number of metres"), default=20.0, help="points count as seen within this depth (default 20 m)")
     e.add_argument("--points-density", type=positive_float(), default=5.0, help="surface points per square metre (default 5, as the paper's evaluation code)")
     e.add_argument("--scene-preset", choices=sorted(PRESETS), default="medium")
+    e.add_argument("--paper-code-actions", action="store_true",
+                   help="random walk with the paper's code's actions as written (two lefts, no right)")
     e.add_argument("--out", type=Path, required=True)
     r = sub.add_parser("reconstruction", help="table 3 / figure 9: random walk, depth + labels fused into voxels")
     r.add_argument("--seed", type=int_at_least(0, "seed"), default=0)
@@ -58,7 +60,7 @@ def main(argv=None) -> int:
         from .exploration import run_exploration, table
 
         results = run_exploration(args.seeds, args.steps, args.runs, args.out, args.scene_preset, args.max_depth,
-                                  args.points_density)
+                                  args.points_density, paper_code_actions=args.paper_code_actions)
         print(table(results))
         print(f"modified random walk beats random walk on every seed: {results['modified_beats_random_on_every_seed']}")
     else:

@@ -47,10 +47,13 @@ def _summary(aucs: list[float]) -> dict:
 
 def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_preset: str = "medium",
                     max_depth: float = 20.0, points_density: float = 5.0, step: float = 3.0,
-                    angle: float = 22.5) -> dict:
+                    angle: float = 22.5, paper_code_actions: bool = False) -> dict:
     """Run both walks ``runs`` times on each seed's site; write trajectories, curves, plots
-    and ``exploration.json`` into ``out``; return the results."""
-    from trajectories import BoundedChecker, modified_random_walk, random_walk
+    and ``exploration.json`` into ``out``; return the results. ``paper_code_actions``: the
+    random walk draws the paper's code's actions as written (two lefts, no right)."""
+    from functools import partial
+
+    from trajectories import ACTIONS, PAPER_CODE_ACTIONS, BoundedChecker, modified_random_walk, random_walk
 
     from evaluation.coverage import coverage_auc
     from evaluation.report import coverage_plot
@@ -61,11 +64,13 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
     from ..scene.site_map import draw_map
     from .start_pose import site_start
 
-    walks = {"random_walk": random_walk, "modified_random_walk": modified_random_walk}
+    rw_actions = PAPER_CODE_ACTIONS if paper_code_actions else ACTIONS
+    walks = {"random_walk": partial(random_walk, actions=rw_actions), "modified_random_walk": modified_random_walk}
     out.mkdir(parents=True, exist_ok=True)
     results = {"task": "exploration", "parameters": {
         "seeds": seeds, "steps": steps, "runs": runs, "scene_preset": scene_preset, "max_depth_m": max_depth,
         "points_density_per_m2": points_density, "step_m": step, "turn_deg": angle, "frame": "first (static scene)",
+        "random_walk_actions": list(rw_actions),
         "start": "one fixed pose per seed: level camera at the site's entrance, lowest spawn height, looking in",
         "bounds": "camera spawn volume (site plan's spawn box)",
         "modified_walk": "forward every step; a blocked forward draws headings uniform in [-180, 180) deg in the same step",
