@@ -215,3 +215,19 @@ def test_modified_random_walk_turns_only_after_a_blocked_forward_move(rooms):
         if actions[k] != FORWARD:
             assert actions[k] in (TURN_LEFT, TURN_RIGHT) and (collided[k - 1] or actions[k - 1] == actions[k])
     assert actions[1] != FORWARD and FORWARD in actions[2:]
+
+
+def test_env_and_raycam_modules_do_not_import_blender():
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys, gymnasium, generator.envs, generator.envs.exploration, generator.envs.policies, "
+            "generator.envs.actions, generator.envs.scenes, generator.geometry.raycam\n"
+            "assert 'bpy' not in sys.modules, 'bpy was imported'\n"
+            "import bpy\n"
+            "print('ok')")
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         cwd=str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
