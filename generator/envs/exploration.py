@@ -75,7 +75,9 @@ class ExplorationEnv(gym.Env):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
-        self.scene_preset = scene_preset
+        from ..scene.site import PRESETS
+
+        self.scene_preset = _choice("scene_preset", scene_preset, tuple(PRESETS))
         self.cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
         self._sources = _sources(seeds, blend_files)
         self._scenes: dict[int, SceneSpec] = {}
@@ -300,7 +302,10 @@ def _sources(seeds, blend_files) -> list[tuple[str, object]]:
         if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
             raise ValueError(f"seeds must be non-negative integers, got {s!r}")
         out.append(("seed", int(s)))
-    out += [("blend", Path(p)) for p in blend_files]
+    for p in blend_files:
+        if not Path(p).is_file():
+            raise FileNotFoundError(f"blend_files: {p} is not a file; pass paths of existing .blend files")
+        out.append(("blend", Path(p)))
     if not out:
         raise ValueError("no scenes: pass seeds=[...] (procedural sites) and/or blend_files=[...]")
     return out
