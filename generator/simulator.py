@@ -18,8 +18,8 @@ from .blender.render import Renderer, RenderSettings, apply_settings, resolve_se
 from .blender.devices import active as active_device
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
-from .geometry.parts import MeshPart
 from .geometry.observability import default_viewpoints, observable_mask
+from .geometry.parts import MeshPart
 from .geometry.raycam import GeometricRender, RayCamera, RayGeometry, geometric_render, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
@@ -130,8 +130,8 @@ class Simulator(PaperAPI):
         self._ray_geometry: RayGeometry | None = None
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
-        self.last_visibility = VisibilityStats()
         self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
+        self.last_visibility = VisibilityStats()
 
         self._world_from_camera = bcam.read_pose(self._camera)
         self._initial_pose = self._world_from_camera.copy()
