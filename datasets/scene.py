@@ -114,7 +114,7 @@ class Sequence:
         version = text(_checked(attribute, f, "format_version")) if "format_version" in f.attrs else None
         if version not in SUPPORTED_VERSIONS:
             raise DatasetError(f"{h5.path}: format_version {version!r}; this reader reads "
-                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites or regenerate)")
+                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
         self.K = h5.read("cameras/K")
         cams = _checked(group, f, "cameras", h5.path)
         self.width, self.height = (int(_checked(attribute, cams, k, h5.path)) for k in ("width", "height"))
@@ -230,7 +230,7 @@ class Scene:
         version = manifest.get("format_version")
         if version not in SUPPORTED_VERSIONS:
             raise DatasetError(f"{self.path}: format_version {version!r}; this reader reads "
-                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites or regenerate)")
+                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
         self.manifest = manifest
         try:
             self.seed = int(manifest["seed"])

@@ -249,7 +249,8 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
         with h5py.File(folder / "scene.h5", "r") as f:
             version = f.attrs.get("format_version")
             if version != FORMAT_VERSION:
-                raise GroundTruthError(f"{folder / 'scene.h5'}: ground-truth format {version!r}, this reader reads {FORMAT_VERSION}")
+                raise GroundTruthError(f"{folder / 'scene.h5'}: ground-truth format {version!r}, this reader reads {FORMAT_VERSION} "
+                                       "(update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
             g = f["parts"]
             V, F = g["vertices"][()], g["faces"][()]
             vo, fo = g["vertex_offsets"][()], g["face_offsets"][()]

@@ -192,7 +192,7 @@ def _read_tracks(path: Path) -> dict:
         version = text(attribute(f, "format_version")) if "format_version" in f.attrs else None
         if version != FORMAT_VERSION:
             raise DamagedFileError(f"{path}: tracks format {version!r}, this reader reads {FORMAT_VERSION} "
-                                   "(update buildee-sites or regenerate the seed)")
+                                   "(update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
         data = read_tracks_file(f)
         check_tracks(data, path)
         try:
