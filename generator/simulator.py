@@ -16,6 +16,7 @@ from .blender import camera as bcam
 from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
 from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
+from .checks import check_number
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
@@ -32,20 +33,6 @@ from .passes import RenderOutput, label_coverage, semantic_map
 
 class SceneError(ValueError):
     """The loaded scene cannot be simulated (e.g. it has no geometry)."""
-
-
-def _check_number(name: str, value, low=None, high=None, low_open=False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if math.isnan(v):
-        raise ValueError(f"{name} must be a number, got NaN")
-    if low is not None and (v <= low if low_open else v < low):
-        raise ValueError(f"{name} must be {'>' if low_open else '>='} {low}, got {value!r}")
-    if high is not None and v > high:
-        raise ValueError(f"{name} must be <= {high}, got {value!r}")
-    return v
 
 
 class Simulator(PaperAPI):
@@ -88,12 +75,12 @@ class Simulator(PaperAPI):
         filter_object_names=(),
         verbose: bool = False,
     ):
-        self.points_density = _check_number("points_density", points_density, low=0, low_open=True)
+        self.points_density = check_number("points_density", points_density, low=0, low_open=True)
         if not math.isfinite(self.points_density):
             raise ValueError(f"points_density must be finite, got {points_density!r}")
-        self.segmentation_sensitivity = _check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
-        self.max_pcl_depth = _check_number("max_pcl_depth", max_pcl_depth, low=0, low_open=True)
-        self.collision_radius = _check_number("collision_radius", collision_radius, low=0)
+        self.segmentation_sensitivity = check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
+        self.max_pcl_depth = check_number("max_pcl_depth", max_pcl_depth, low=0, low_open=True)
+        self.collision_radius = check_number("collision_radius", collision_radius, low=0)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
@@ -324,7 +311,7 @@ class Simulator(PaperAPI):
         return False
 
     def _move(self, axis: int, distance: float) -> bool:
-        d = _check_number("distance", distance)
+        d = check_number("distance", distance)
         return self.set_world_from_camera(cam_model.translated_along_axis(self._world_from_camera, axis, d))
 
     def move_camera_forward(self, distance: float) -> bool:
@@ -342,7 +329,7 @@ class Simulator(PaperAPI):
     def turn_camera_right(self, angle: float, degrees: bool = True) -> bool:
         """Turn right (clockwise seen from above) about the world Z axis through the camera
         centre; the horizon stays level. Never collides (returns False)."""
-        a = _check_number("angle", angle)
+        a = check_number("angle", angle)
         a = math.radians(a) if degrees else a
         return self.set_world_from_camera(cam_model.turned_about_world_z(self._world_from_camera, a), check_collisions=False)
 

@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from ..checks import check_number
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
@@ -68,7 +69,7 @@ class ExplorationEnv(gym.Env):
         self.max_steps = _count("max_steps", max_steps)
         self.max_depth = _positive("max_depth", max_depth, allow_inf=True)
         self.points_density = _positive("points_density", points_density)
-        self.collision_penalty = _number("collision_penalty", collision_penalty)
+        self.collision_penalty = check_number("collision_penalty", collision_penalty)
         self.coverage_set = _choice("coverage", coverage, COVERAGE_SETS)
         self.start_rule = _choice("start", start, STARTS)
         self.rgb, self.render_preset = bool(rgb), render_preset
@@ -245,20 +246,8 @@ def _simulator_class():
 
 
 # ---- argument checks ----------------------------------------------------------------------
-def _number(name: str, value) -> float:
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if math.isnan(v):
-        raise ValueError(f"{name} must be a number, got NaN")
-    return v
-
-
 def _positive(name: str, value, allow_inf: bool = False) -> float:
-    v = _number(name, value)
+    v = check_number(name, value)
     if not (v > 0) or (math.isinf(v) and not allow_inf):
         raise ValueError(f"{name} must be a positive{'' if allow_inf else ' finite'} number, got {value!r}")
     return v
