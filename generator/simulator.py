@@ -21,7 +21,7 @@ from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.parts import MeshPart
-from .geometry.raycam import GeometricRender, RayCamera, RayGeometry, geometric_render, labels_of_parts
+from .geometry.raycam import GeometricRender, RayCamera, geometric_render, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -114,7 +114,6 @@ class Simulator(PaperAPI):
         self._pass_table = assign_pass_indices(self._parts, self.label_ids)
         self._renderer: Renderer | None = None
         self._raycam: RayCamera | None = None  # render(engine="raycast"), built on first use
-        self._ray_geometry: RayGeometry | None = None
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
@@ -438,9 +437,7 @@ class Simulator(PaperAPI):
         args = (self.K, self.width, self.height, self.clip_start, self.clip_end)
         if self._raycam is None or not self._raycam.matches(*args):
             self._raycam = RayCamera(*args)
-        if self._ray_geometry is None:
-            self._ray_geometry = RayGeometry(self._geometry.parts)
-        hits = self._raycam.cast(self._ray_geometry, self._world_from_camera, normals=normals)
+        hits = self._raycam.cast(self._geometry, self._world_from_camera, normals=normals)
         label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
         return geometric_render(hits, label_of_part, self.K, self._world_from_camera, self.frame)
 

@@ -26,10 +26,7 @@ import numpy as np
 
 from ..passes import RenderOutput
 from .camera import pixel_rays
-from .o3d import import_open3d
-from .parts import MeshPart
-
-o3d = import_open3d()
+from .raycast import SceneGeometry
 
 
 @dataclass
@@ -74,13 +71,16 @@ class RayCamera:
         return (int(width), int(height), float(clip_start), float(clip_end)) == (
             self.width, self.height, self.clip_start, self.clip_end) and np.array_equal(K, self.K)
 
-    def cast(self, geometry: "RayGeometry", world_from_camera: np.ndarray, normals: bool = True) -> PixelHits:
+    def cast(self, geometry: SceneGeometry, world_from_camera: np.ndarray, normals: bool = True) -> PixelHits:
         """First hits of every pixel-centre ray from the pose ``world_from_camera`` (4x4)."""
         pose = np.asarray(world_from_camera, dtype=np.float64)
         rot = pose[:3, :3]
         dirs = self._rays @ rot.T  # world directions with unit camera-frame z: t = planar depth
         origins = pose[:3, 3] + self.clip_start * dirs  # the ray starts on the near clip plane
-        t, part, normal = geometry.cast(origins, dirs)
+        if normals:
+            t, part, normal = geometry.cast_with_normals(origins, dirs)
+        else:
+            t, part = geometry.cast(origins, dirs)
         depth = t + self.clip_start
         hit = (part >= 0) & np.isfinite(t) & (depth <= self.clip_end)
         h, w = self.height, self.width
@@ -92,66 +92,6 @@ class RayCamera:
             n *= np.where(np.einsum("ij,ij->i", n, self._rays) > 0, -1.0, 1.0)[:, None]  # face the camera
             normal_img = np.where(hit[:, None], n, 0.0).astype(np.float32).reshape(h, w, 3)
         return PixelHits(depth_img, part_img, normal_img)
-
-
-class RayGeometry:
-    """First-hit ray casting with triangle normals on rigid mesh parts (open3d / Embree).
-
-    Built from the parts the Simulator holds (``SceneGeometry.parts``, the same objects, so
-    the same triangles as visibility and collisions use): static parts once, dynamic
-    parts again whenever their ``matrix`` changed since the last cast.
-    """
-
-    def __init__(self, parts: list[MeshPart]):
-        self.parts = parts
-        self._static, self._static_ids = _structure([i for i, p in enumerate(parts) if not p.dynamic], parts)
-        self._dynamic_index = [i for i, p in enumerate(parts) if p.dynamic]
-        self._dynamic, self._dynamic_ids, self._matrices = None, np.zeros(0, np.int64), None
-
-    def _current_dynamic(self):
-        if self._dynamic_index:
-            mats = np.stack([self.parts[i].matrix for i in self._dynamic_index])
-            if self._matrices is None or not np.array_equal(mats, self._matrices):
-                self._dynamic, self._dynamic_ids = _structure(self._dynamic_index, self.parts)
-                self._matrices = mats
-        return self._dynamic
-
-    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """First hits: t (N,) float64 in units of each direction's length (inf: miss), part
-        index (N,) int64 (-1: miss), unit normal (N, 3) float32 of the triangle hit in the
-        world frame, either side (zero: miss)."""
-        n = len(directions)
-        rays = np.empty((n, 6), dtype=np.float32)
-        rays[:, :3] = origins
-        rays[:, 3:] = directions
-        t_rays = o3d.core.Tensor.from_numpy(rays)
-        best_t = np.full(n, np.inf)
-        part = np.full(n, -1, dtype=np.int64)
-        normal = np.zeros((n, 3), dtype=np.float32)
-        for scene, ids in ((self._static, self._static_ids), (self._current_dynamic(), self._dynamic_ids)):
-            if scene is None:
-                continue
-            ans = scene.cast_rays(t_rays)
-            t = ans["t_hit"].numpy().astype(np.float64)
-            closer = t < best_t
-            best_t[closer] = t[closer]
-            part[closer] = ids[ans["geometry_ids"].numpy()[closer].astype(np.int64)]
-            normal[closer] = ans["primitive_normals"].numpy()[closer]
-        return best_t, part, normal
-
-
-def _structure(index: list[int], parts: list[MeshPart]):
-    """(open3d RaycastingScene of the parts ``index`` at their current matrices or None,
-    part index of each geometry id)."""
-    scene, ids = o3d.t.geometry.RaycastingScene(), []
-    for i in index:
-        p = parts[i]
-        if len(p.faces) == 0:
-            continue
-        scene.add_triangles(o3d.core.Tensor.from_numpy(np.ascontiguousarray(p.world_vertices(), dtype=np.float32)),
-                            o3d.core.Tensor.from_numpy(np.ascontiguousarray(p.faces, dtype=np.uint32)))
-        ids.append(i)
-    return (scene if ids else None), np.asarray(ids, dtype=np.int64)
 
 
 def labels_of_parts(part_labels: list[str], label_ids: dict[str, int]) -> np.ndarray:

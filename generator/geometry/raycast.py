@@ -160,6 +160,14 @@ class SceneGeometry:
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First hit along rays: returns (t (N,) in units of ``directions``' length, inf for a
         miss; part index (N,) int64, -1 for a miss)."""
+        return self._first_hits(origins, directions, normals=False)[:2]
+
+    def cast_with_normals(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As :meth:`cast`, plus the unit normal (N, 3) float32 of the triangle hit, world
+        frame, either side (zero for a miss)."""
+        return self._first_hits(origins, directions, normals=True)
+
+    def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origins
@@ -167,6 +175,7 @@ class SceneGeometry:
         t_rays = _tensor(rays)
         best_t = np.full(n, np.inf)
         best_part = np.full(n, -1, dtype=np.int64)
+        best_normal = np.zeros((n, 3), dtype=np.float32) if normals else None
         self._scenes()
         for scene, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
             if scene is None:
@@ -177,7 +186,9 @@ class SceneGeometry:
             closer = t < best_t
             best_t[closer] = t[closer]
             best_part[closer] = np.asarray(self._geometry_to_part(index), dtype=np.int64)[gid[closer]]
-        return best_t, best_part
+            if normals:
+                best_normal[closer] = ans["primitive_normals"].numpy()[closer]
+        return best_t, best_part, best_normal
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces
