@@ -4,8 +4,10 @@ One PINHOLE camera; one registered image per frame, named like the PNGs, with po
 ``camera_from_world`` (the inverse of our world_from_camera; COLMAP's pixel convention is
 ours: the top-left pixel's centre is (0.5, 0.5)); keypoints at the exact projections of the
 static surface points visible in that frame; 3D points = static points seen in at least two
-frames, with their tracks and the colour of the rendered pixel where first seen.
-Dynamic points never enter the model.
+frames, with their tracks, the colour of the rendered pixel where first seen, and their
+reprojection error (COLMAP's: the mean distance in pixels between a point's projection in
+each image of its track and the keypoint there; ~1e-12 px here since the keypoints are exact
+projections). Dynamic points never enter the model.
 
 :func:`read_colmap_model` reads a model back for scoring, refusing damaged files and
 degenerate cameras.
@@ -42,6 +44,7 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
         elements = tracks[p]
         if len(elements) >= 2:
             rec.add_point3D(np.asarray(points[p], dtype=np.float64), pycolmap.Track(elements), np.asarray(colors[p], dtype=np.uint8))
+    rec.update_point_3d_errors()  # COLMAP's own mean reprojection error per point (add_point3D leaves -1)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     rec.write(str(folder))

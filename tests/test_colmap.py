@@ -40,3 +40,44 @@ def test_colmap_round_trip(tmp_path):
     for point in rec.points3D.values():
         assert point.track.length() >= 2
     assert rec.compute_mean_reprojection_error() < 1e-6
+
+
+def test_points3d_carry_their_real_reprojection_error(tmp_path):
+    """COLMAP's per-point error is the mean pixel distance between the point's projection and
+    its keypoints: recomputed here from the written keypoints and our own poses and K (with
+    keypoints moved off their exact projections, so the errors are far from zero)."""
+    rng = np.random.default_rng(3)
+    K = np.array([[200.0, 0, 80], [0, 200.0, 60], [0, 0, 1]])
+    pts = rng.uniform(-3, 3, (200, 3))
+    poses = np.stack([look_at((10 * np.cos(a), 10 * np.sin(a), 3.0), (0, 0, 0)) for a in np.linspace(0, 1, 4)])
+    obs = []
+    for pose in poses:
+        uv, z = project(pts, pose, K)
+        keep = np.flatnonzero((z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < 160) & (uv[:, 1] >= 0) & (uv[:, 1] < 120))
+        obs.append((keep, uv[keep] + rng.normal(0, 0.7, (len(keep), 2))))
+    names = [f"rgb_{t:06d}.png" for t in range(len(poses))]
+    folder = tmp_path / "sparse" / "0"
+    write_colmap_model(folder, K, 160, 120, poses, names, obs, pts, np.zeros((200, 3), np.uint8), text=True)
+    rec = pycolmap.Reconstruction(str(folder))
+    residuals: dict[int, list] = {}
+    for image in rec.images.values():
+        pose = poses[names.index(image.name)]
+        for p2d in image.points2D:
+            if p2d.has_point3D():
+                uv, _ = project(pts[None, _point_index(rec, p2d.point3D_id, pts)], pose, K)
+                residuals.setdefault(p2d.point3D_id, []).append(np.linalg.norm(uv[0] - p2d.xy))
+    assert len(residuals) == rec.num_points3D() > 100
+    errors = np.array([rec.points3D[i].error for i in residuals])
+    expected = np.array([np.mean(r) for r in residuals.values()])
+    assert np.all(errors > 0.05), "points must not carry COLMAP's 'unknown' error (-1) or zero"
+    np.testing.assert_allclose(errors, expected, rtol=1e-9, atol=1e-9)
+    # the text model states the same errors (column ERROR of points3D.txt)
+    text_errors = {int(line.split()[0]): float(line.split()[7]) for line in (folder / "points3D.txt").read_text().splitlines()
+                   if line and not line.startswith("#")}
+    np.testing.assert_allclose([text_errors[i] for i in residuals], expected, rtol=1e-6)
+    assert abs(rec.compute_mean_reprojection_error() - expected.mean()) < 1e-9
+
+
+def _point_index(rec, point3d_id: int, pts: np.ndarray) -> int:
+    """Which of our points a COLMAP 3D point is (its coordinates are ours, exactly)."""
+    return int(np.flatnonzero(np.all(pts == rec.points3D[point3d_id].xyz, axis=1))[0])
