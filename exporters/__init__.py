@@ -3,4 +3,4 @@
 ``FORMAT_VERSION`` versions the whole seed folder (docs/format.md); every HDF5 file and the
 manifest carry it."""
 
-FORMAT_VERSION = "0.4"
+FORMAT_VERSION = "0.5"

@@ -1,17 +1,16 @@
-"""Per-frame EXR files: RGB, depth, semantic labels and instance ids in one file.
+"""Per-frame EXR files: every EXR-stored modality of one frame (``exporters/modalities.py``).
 
-Channels (single part, scanline, documented in docs/format.md):
+Layout (docs/format.md): a multi-part scanline OpenEXR file.
 
-| channel    | type   | content                                                          |
-|------------|--------|------------------------------------------------------------------|
-| R, G, B    | HALF   | colour; display-referred sRGB in [0, 1] unless the header says    |
-| Z          | FLOAT  | planar depth in metres (camera z), +inf where no surface         |
-| label      | UINT   | semantic label id; 4294967295 (= -1 as int32) means unlabelled   |
-| instance   | UINT   | object (instance) id; 4294967295 (= -1 as int32) means none      |
+- part 0 ``frame``: colour and float modalities (``R``, ``G``, ``B`` HALF scene-linear RGB with
+  the ``chromaticities`` attribute, ``Z`` FLOAT planar depth, ``normal.X/Y/Z``, ``flow.X/Y``,
+  ``backward_flow.X/Y`` FLOAT...). Readers that open one part (imageio's FreeImage, OpenCV)
+  get the colour from it.
+- part 1 ``ids``: UINT ids (``label``, ``instance``; 4294967295 = -1 = none), exact.
 
-Any subset of the channels may be written. Header attributes ``buildee/*`` state units and
-conventions. The reader returns exactly the arrays that were written (RGB as float16,
-depth as float32, label and instance as int32 with -1).
+A file with only one kind of channel has one part. Header attributes ``buildee/*`` state the
+conventions; ``buildee/modalities`` maps each modality to its channels. The reader returns
+exactly the arrays that were written, keyed by modality name.
 """
 
 from __future__ import annotations
@@ -23,6 +22,7 @@ import numpy as np
 import OpenEXR
 
 from .hdf5 import REMEDY, DamagedFileError, damaged
+from .modalities import MODALITIES
 
 COMPRESSIONS = {
     "none": OpenEXR.NO_COMPRESSION,
@@ -31,142 +31,180 @@ COMPRESSIONS = {
     "zip": OpenEXR.ZIP_COMPRESSION,
     "piz": OpenEXR.PIZ_COMPRESSION,
 }
-RGB_CHANNELS = ("R", "G", "B")
-DEPTH_CHANNEL = "Z"
-LABEL_CHANNEL = "label"
-INSTANCE_CHANNEL = "instance"
+# Blender's working space (linear Rec.709 / sRGB primaries, D65 white): red, green, blue, white xy
+REC709_CHROMATICITIES = (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290)
 ATTRIBUTES = {
-    "buildee/format": "frame-exr-1",
-    "buildee/depth": "Z: planar depth (camera z) in metres, float32, +inf = no surface",
-    "buildee/label": "label: uint32 label id, 4294967295 (-1 as int32) = unlabelled",
-    "buildee/instance": "instance: uint32 object id, 4294967295 (-1 as int32) = none",
+    "buildee/format": "frame-exr-2",
     "buildee/pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
 }
+PART_NAMES = ("frame", "ids")
 
 
-def _ids_to_uint32(ids: np.ndarray, name: str) -> np.ndarray:
-    ids = np.asarray(ids)
-    if ids.ndim != 2 or not np.issubdtype(ids.dtype, np.integer):
-        raise ValueError(f"{name} must be a 2D integer array, got {ids.dtype} {ids.shape}")
-    if ids.size and (ids.min() < -1 or ids.max() > np.iinfo(np.int32).max):
-        raise ValueError(f"{name} ids must lie in [-1, 2^31 - 1]")
-    return np.ascontiguousarray(ids.astype(np.int64).astype(np.int32).view(np.uint32))
-
-
-def write_frame_exr(
-    path: str | Path,
-    rgb: np.ndarray | None = None,
-    depth: np.ndarray | None = None,
-    label: np.ndarray | None = None,
-    instance: np.ndarray | None = None,
-    compression: str = "zip",
-    rgb_meaning: str = "display-referred sRGB in [0, 1]",
-    attributes: dict[str, str] | None = None,
-) -> Path:
-    """Write one frame's arrays (all (H, W) or (H, W, 3), same H and W) to an EXR file."""
+def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",
+                attributes: dict | None = None) -> Path:
+    """Write ``outputs`` (modality name -> array, all of one (H, W)) to an EXR file: UINT ids
+    in part ``ids``, everything else in part ``frame`` (docs/format.md)."""
     if compression not in COMPRESSIONS:
         raise ValueError(f"unknown EXR compression {compression!r}; choose one of {', '.join(COMPRESSIONS)}")
-    channels: dict[str, np.ndarray] = {}
-    if rgb is not None:
-        rgb = np.asarray(rgb)
-        if rgb.ndim != 3 or rgb.shape[2] != 3:
-            raise ValueError(f"rgb must have shape (H, W, 3), got {rgb.shape}")
-        for k, c in enumerate(RGB_CHANNELS):
-            channels[c] = np.ascontiguousarray(rgb[..., k], dtype=np.float16)
-    if depth is not None:
-        depth = np.asarray(depth)
-        if depth.ndim != 2:
-            raise ValueError(f"depth must have shape (H, W), got {depth.shape}")
-        channels[DEPTH_CHANNEL] = np.ascontiguousarray(depth, dtype=np.float32)
-    if label is not None:
-        channels[LABEL_CHANNEL] = _ids_to_uint32(label, "label")
-    if instance is not None:
-        channels[INSTANCE_CHANNEL] = _ids_to_uint32(instance, "instance")
-    if not channels:
-        raise ValueError("nothing to write: pass at least one of rgb, depth, label, instance")
-    shapes = {c.shape[:2] for c in channels.values()}
+    unknown = [n for n in outputs if n not in MODALITIES]
+    if unknown:
+        raise ValueError(f"unknown modality {', '.join(unknown)}: choose from {', '.join(MODALITIES)}")
+    parts: dict[str, dict[str, np.ndarray]] = {}
+    layout: dict[str, dict[str, list[str]]] = {}
+    for name, array in outputs.items():
+        m = MODALITIES[name]
+        part = "ids" if m.is_ids else "frame"
+        channels = parts.setdefault(part, {})
+        clash = [c for c in m.channels if c in channels]
+        if clash:
+            raise ValueError(f"{name} and another output both use EXR channels {clash}; write one of them")
+        channels.update(m.encode(array))
+        layout.setdefault(part, {})[name] = list(m.channels)
+    if not parts:
+        raise ValueError("nothing to write: pass at least one output")
+    shapes = {c.shape for ch in parts.values() for c in ch.values()}
     if len(shapes) != 1:
-        raise ValueError(f"all arrays must share one (H, W), got {sorted(shapes)}")
-    header = {"compression": COMPRESSIONS[compression], "type": OpenEXR.scanlineimage}
-    header.update(ATTRIBUTES)
-    if rgb is not None:
-        header["buildee/rgb"] = rgb_meaning
-    for key, value in (attributes or {}).items():
-        header[key] = value if isinstance(value, str) else json.dumps(value)
+        raise ValueError(f"all outputs must share one (H, W), got {sorted(shapes)}")
+    extra = {k: v if isinstance(v, str) else json.dumps(v) for k, v in (attributes or {}).items()}
+    exr_parts = []
+    for part in PART_NAMES:
+        if part not in parts:
+            continue
+        header = {"compression": COMPRESSIONS[compression], "type": OpenEXR.scanlineimage} | ATTRIBUTES | extra
+        header["buildee/modalities"] = json.dumps(layout[part])
+        for name in layout[part]:
+            header[f"buildee/{name}"] = MODALITIES[name].description
+        if "rgb_linear" in layout[part]:
+            header["chromaticities"] = REC709_CHROMATICITIES
+        exr_parts.append(OpenEXR.Part(header, dict(parts[part]), name=part))  # the library replaces the arrays
     path = Path(path)
-    with OpenEXR.File(header, dict(channels)) as f:  # the library replaces the dict's arrays
+    with OpenEXR.File(exr_parts) as f:
         f.write(str(path))
     return path
 
 
-def read_frame_exr(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a frame EXR: returns the written arrays under 'rgb', 'depth', 'label', 'instance'
-    (only those present) plus 'header' (the file's attributes). A truncated or damaged file
-    raises :class:`~exporters.hdf5.DamagedFileError` naming it (its structure is checked
-    before OpenEXR decodes it; ZIP-compressed chunks carry zlib's own checksum)."""
+def write_frame_exr(path: str | Path, rgb: np.ndarray | None = None, depth: np.ndarray | None = None,
+                    label: np.ndarray | None = None, instance: np.ndarray | None = None, compression: str = "zip",
+                    attributes: dict | None = None) -> Path:
+    """The four classic outputs by keyword (``rgb`` is display-referred colour, stored as
+    modality ``rgb`` in channels R, G, B); see :func:`write_frame`."""
+    outputs = {k: v for k, v in (("rgb", rgb), ("depth", depth), ("label", label), ("instance", instance))
+               if v is not None}
+    return write_frame(path, outputs, compression, attributes)
+
+
+def read_frame_exr(path: str | Path, keys=None) -> dict:
+    """Read a frame EXR: the written arrays keyed by modality name (only those present, or
+    those in ``keys``) plus ``header`` (part 0's attributes). Files without
+    ``buildee/modalities`` (other tools') are matched against the registry by channel names.
+    A truncated or damaged file raises :class:`~exporters.hdf5.DamagedFileError` naming it
+    (its structure is checked before OpenEXR decodes it; ZIP chunks carry zlib's checksum)."""
     path = Path(path)
     if not path.is_file():
         raise DamagedFileError(f"{path}: no such file; {REMEDY}")
     check_exr_structure(path)
+    out: dict = {}
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
-            ch = {name: c.pixels for name, c in f.channels().items()}
-            header = dict(f.header())
+            for k, part in enumerate(f.parts):
+                header = dict(part.header)
+                if k == 0:
+                    out["header"] = header
+                ch = {name: c.pixels for name, c in part.channels.items()}
+                for name, m in _modalities_of(header, ch).items():
+                    if keys is None or name in keys:
+                        out[name] = m.decode(ch)
     except (OSError, ValueError, RuntimeError, TypeError) as exc:
         raise damaged(path, f"OpenEXR cannot decode its pixels: {exc.__class__.__name__}") from None
-    out: dict = {"header": header}
-    if all(c in ch for c in RGB_CHANNELS):
-        out["rgb"] = np.stack([ch[c] for c in RGB_CHANNELS], axis=-1)
-    if DEPTH_CHANNEL in ch:
-        out["depth"] = ch[DEPTH_CHANNEL]
-    for key, name in (("label", LABEL_CHANNEL), ("instance", INSTANCE_CHANNEL)):
-        if name in ch:
-            out[key] = np.ascontiguousarray(ch[name], dtype=np.uint32).view(np.int32)
     return out
 
 
+def _modalities_of(header: dict, channels: dict) -> dict:
+    raw = header.get("buildee/modalities")
+    if raw is not None:
+        names = list(json.loads(raw))
+        unknown = [n for n in names if n not in MODALITIES]
+        if unknown:
+            raise ValueError(f"modalities {unknown} are not registered in this process")
+        return {n: MODALITIES[n] for n in names}
+    found = {}
+    for name, m in MODALITIES.items():  # a plain file: first registered owner of each channel set
+        if m.part is not None and all(c in channels for c in m.channels) and not any(
+                set(m.channels) & set(o.channels) for o in found.values()):
+            found[name] = m
+    return found
+
+
+# ---- structure check (before OpenEXR decodes anything) ---------------------------------------
+
 _MAGIC = b"\x76\x2f\x31\x01"
 _LINES_PER_CHUNK = {0: 1, 1: 1, 2: 1, 3: 16, 4: 32, 5: 16, 6: 32, 7: 32, 8: 32, 9: 256}  # by compression id
-_SINGLE_PART_FLAGS = 0x200 | 0x800 | 0x1000  # tiled, deep, multi-part: not our frame layout
+_TILED_OR_DEEP = 0x200 | 0x800
+_MULTI_PART = 0x1000
 _MAX_HEADER = 1 << 20
 
 
 def check_exr_structure(path: Path) -> None:
-    """Check a single-part scanline EXR (our frames) is whole: the header parses, and the
-    chunk table points at chunks that lie inside the file, each for the scanlines it should
-    hold. Other EXR layouts are left to OpenEXR. Raises DamagedFileError."""
+    """Check a scanline EXR (single- or multi-part: our frames) is whole: the headers parse,
+    and the chunk tables point at chunks that lie inside the file, each for the part and
+    scanlines it should hold. Tiled and deep files are left to OpenEXR. Raises DamagedFileError."""
     size = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(min(size, _MAX_HEADER))
         if head[:4] != _MAGIC:
             raise damaged(path, "not an OpenEXR file (bad magic number)" if size >= 4 else "empty or truncated file")
         flags = int.from_bytes(head[4:8], "little")
-        if flags & _SINGLE_PART_FLAGS:
+        if flags & _TILED_OR_DEEP:
             return
-        window, compression, pos = _parse_header(head, path)
-        y0, y1 = window[1], window[3]
-        per = _LINES_PER_CHUNK.get(compression)
-        if per is None or y1 < y0:
-            raise damaged(path, f"header: compression {compression}, data window {window}")
-        chunks = -(-(y1 - y0 + 1) // per)
-        table = head[pos:pos + 8 * chunks]
-        if len(table) < 8 * chunks:
-            f.seek(pos)
-            table = f.read(8 * chunks)
-        if len(table) < 8 * chunks:
+        multi = bool(flags & _MULTI_PART)
+        headers, pos = [], 8
+        while True:
+            window, compression, pos = _parse_header(head, pos, path)
+            headers.append((window, compression))
+            if not multi:
+                break
+            if pos >= len(head):
+                raise damaged(path, "truncated header")
+            if head[pos] == 0:
+                pos += 1
+                break
+        counts = []
+        for window, compression in headers:
+            per = _LINES_PER_CHUNK.get(compression)
+            if per is None or window[3] < window[1]:
+                raise damaged(path, f"header: compression {compression}, data window {window}")
+            counts.append(-(-(window[3] - window[1] + 1) // per))
+        f.seek(pos)
+        table = f.read(8 * sum(counts))
+        if len(table) < 8 * sum(counts):
             raise damaged(path, "cut short inside its chunk table")
-        for k, offset in enumerate(np.frombuffer(table, "<u8")):
-            if offset + 8 > size:
-                raise damaged(path, f"cut short: chunk {k} of {chunks} lies past the end of the file")
-            f.seek(int(offset))
-            y, length = np.frombuffer(f.read(8), "<i4")
-            if y != y0 + k * per or length < 0 or offset + 8 + length > size:
-                raise damaged(path, f"chunk {k} of {chunks} is cut short or overwritten (scanline {y}, {length} bytes)")
+        offsets = np.frombuffer(table, "<u8")
+        start = 0
+        for p, ((window, compression), chunks) in enumerate(zip(headers, counts)):
+            per = _LINES_PER_CHUNK[compression]
+            for k, offset in enumerate(offsets[start:start + chunks]):
+                _check_chunk(f, path, size, int(offset), p if multi else None, window[1] + k * per, k, chunks)
+            start += chunks
 
 
-def _parse_header(head: bytes, path: Path) -> tuple[tuple[int, int, int, int], int, int]:
-    """(dataWindow, compression id, offset of the chunk table) from the bytes of a header."""
-    pos, window, compression = 8, None, None
+def _check_chunk(f, path: Path, size: int, offset: int, part: int | None, y_expected: int, k: int, chunks: int) -> None:
+    prefix = 12 if part is not None else 8
+    if offset + prefix > size:
+        raise damaged(path, f"cut short: chunk {k} of {chunks} lies past the end of the file")
+    f.seek(offset)
+    fields = np.frombuffer(f.read(prefix), "<i4")
+    if part is not None:
+        if fields[0] != part:
+            raise damaged(path, f"chunk {k} of part {part} is overwritten (it names part {fields[0]})")
+        fields = fields[1:]
+    y, length = fields
+    if y != y_expected or length < 0 or offset + prefix + length > size:
+        raise damaged(path, f"chunk {k} of {chunks} is cut short or overwritten (scanline {y}, {length} bytes)")
+
+
+def _parse_header(head: bytes, pos: int, path: Path) -> tuple[tuple[int, int, int, int], int, int]:
+    """(dataWindow, compression id, offset after the header) of the header starting at ``pos``."""
+    window, compression = None, None
     while True:
         if pos >= len(head):
             raise damaged(path, "truncated header")

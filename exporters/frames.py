@@ -1,5 +1,11 @@
-"""Per-frame image files of one trajectory: ``frame_NNNNNN.exr`` (RGB, depth, labels,
-instances; see exr.py) and ``rgb_NNNNNN.png`` (8-bit sRGB for tools that do not read EXR)."""
+"""Per-frame image files of one trajectory and their reader (one schema, here).
+
+For frame N the frames sink writes ``frame_NNNNNN.exr`` (every modality with an EXR part:
+see exr.py) and the PNG files the modality table asks for: ``rgb_NNNNNN.png`` (8-bit
+display sRGB), ``label_NNNNNN.png`` and ``instance_NNNNNN.png`` (16-bit, id + 1, 0 = none).
+``frames.json`` lists the modalities written, their files, channels and conventions;
+:class:`FrameReader` reads frames back by modality name.
+"""
 
 from __future__ import annotations
 
@@ -9,24 +15,133 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .exr import write_frame_exr
+from .exr import read_frame_exr, write_frame
+from .hdf5 import REMEDY, DamagedFileError
+from .modalities import MODALITIES, Modality
+from .sinks import FrameRecord, TrajectoryContext, register_sink
+
+INDEX_FILE = "frames.json"
+ID16_MAX = 65534  # largest id a 16-bit id PNG holds (stored as id + 1)
 
 
 def frame_names(index: int) -> tuple[str, str]:
+    """(EXR name, display PNG name) of frame ``index``."""
     return f"frame_{index:06d}.exr", f"rgb_{index:06d}.png"
 
 
-class FrameWriter:
-    """Writes the frames of one trajectory into ``folder``."""
+def png_name(prefix: str, index: int) -> str:
+    return f"{prefix}_{index:06d}.png"
 
-    def __init__(self, folder: str | Path, labels: list[str], compression: str = "zip"):
-        self.folder = Path(folder)
+
+def write_png(path: Path, array: np.ndarray, kind: str, name: str) -> None:
+    """``rgb8``: display colour in [0, 1] -> 8-bit sRGB (rounded); ``id16``: ids -> 16-bit id + 1."""
+    if kind == "rgb8":
+        img = (np.clip(array, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    elif kind == "id16":
+        ids = np.asarray(array)
+        if ids.size and ids.max() > ID16_MAX:
+            raise ValueError(f"{name} id {int(ids.max())} does not fit a 16-bit PNG (at most {ID16_MAX}); "
+                             f"leave {name} PNGs out or use the EXR")
+        img = (ids.astype(np.int64) + 1).astype(np.uint16)
+    else:
+        raise ValueError(f"unknown PNG kind {kind!r}")
+    Image.fromarray(img).save(path, compress_level=1)
+
+
+def read_png(path: Path, kind: str) -> np.ndarray:
+    """Inverse of :func:`write_png`: float32 colour in [0, 1], or int32 ids (-1 = none)."""
+    data = np.asarray(Image.open(path))
+    if kind == "rgb8":
+        return (data[..., :3].astype(np.float32) / np.float32(255.0)).astype(np.float32)
+    return data.astype(np.int32) - 1
+
+
+@register_sink("frames")
+class FramesSink:
+    """Writes every frame's modalities (``context.modalities``) into the trajectory folder."""
+
+    def __init__(self, context: TrajectoryContext, compression: str = "zip"):
+        self.folder = Path(context.folder)
         self.folder.mkdir(parents=True, exist_ok=True)
+        self.names = tuple(context.modalities)
         self.compression = compression
-        self.attributes = {"buildee/labels": json.dumps(labels)}
+        self.attributes = {"buildee/labels": json.dumps(list(context.labels))}
+        self.frames, self.size = 0, (int(context.width), int(context.height))
 
-    def write(self, index: int, rgb: np.ndarray, depth: np.ndarray, seg: np.ndarray, instance: np.ndarray) -> None:
-        exr, png = frame_names(index)
-        write_frame_exr(self.folder / exr, rgb, depth, seg, instance, compression=self.compression,
-                        attributes=self.attributes)
-        Image.fromarray((np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)).save(self.folder / png, compress_level=1)
+    def add_frame(self, frame: FrameRecord) -> None:
+        i = frame.index
+        stored = {n: frame.outputs[n] for n in self.names if MODALITIES[n].part is not None}
+        if stored:
+            write_frame(self.folder / frame_names(i)[0], stored, self.compression, self.attributes)
+        for n in self.names:
+            for prefix, kind in MODALITIES[n].pngs:
+                write_png(self.folder / png_name(prefix, i), frame.outputs[n], kind, n)
+        self.frames = max(self.frames, i + 1)
+
+    def close(self) -> None:
+        doc = {"format": "frames-1", "frames": self.frames, "width": self.size[0], "height": self.size[1],
+               "pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
+               "modalities": {n: describe(MODALITIES[n]) for n in self.names}}
+        (self.folder / INDEX_FILE).write_text(json.dumps(doc, indent=1))
+
+
+def describe(m: Modality) -> dict:
+    """A modality's entry in frames.json."""
+    files = ([frame_names(0)[0].replace("000000", "NNNNNN") + f" part {m.part}"] if m.part else []) + [
+        png_name(p, 0).replace("000000", "NNNNNN") + (" (8-bit sRGB)" if k == "rgb8" else " (16-bit, id + 1, 0 = none)")
+        for p, k in m.pngs]
+    return {"description": m.description, "source": m.source, "channels": list(m.channels) if m.part else [],
+            "exr_type": m.exr_type if m.part else None, "dtype": m.dtype, "files": files}
+
+
+class FrameReader:
+    """Reads the frames of one trajectory folder by modality name (``frames.json`` says
+    which were written). Damaged or missing files raise DamagedFileError naming them."""
+
+    def __init__(self, folder: str | Path):
+        self.folder = Path(folder)
+        path = self.folder / INDEX_FILE
+        try:
+            doc = json.loads(path.read_text())
+            self.modalities: tuple[str, ...] = tuple(doc["modalities"])
+            self.frames, self.width, self.height = int(doc["frames"]), int(doc["width"]), int(doc["height"])
+        except FileNotFoundError:
+            raise DamagedFileError(f"{path}: missing; {REMEDY}") from None
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise DamagedFileError(f"{path}: damaged file ({exc.__class__.__name__}); {REMEDY}") from None
+        unknown = [n for n in self.modalities if n not in MODALITIES]
+        if unknown:
+            raise DamagedFileError(f"{path}: modalities {unknown} are not registered in this process "
+                                   "(register them before reading)")
+
+    def read(self, index: int, keys=None) -> dict[str, np.ndarray]:
+        """Modality name -> array of frame ``index`` for ``keys`` (default: all written)."""
+        keys = self.modalities if keys is None else tuple(keys)
+        missing = [k for k in keys if k not in self.modalities]
+        if missing:
+            raise KeyError(f"{self.folder}: no modality {', '.join(missing)} (written: {', '.join(self.modalities)})")
+        out = {}
+        in_exr = [k for k in keys if MODALITIES[k].part is not None]
+        if in_exr:
+            exr = read_frame_exr(self.folder / frame_names(index)[0], in_exr)
+            absent = [k for k in in_exr if k not in exr]
+            if absent:
+                raise DamagedFileError(f"{self.folder / frame_names(index)[0]}: damaged frame (no "
+                                       f"{', '.join(absent)}); {REMEDY}")
+            out |= {k: exr[k] for k in in_exr}
+        for k in keys:
+            if MODALITIES[k].part is None:
+                prefix, kind = MODALITIES[k].pngs[0]
+                path = self.folder / png_name(prefix, index)
+                if not path.is_file():
+                    raise DamagedFileError(f"{path}: missing frame file; {REMEDY}")
+                try:
+                    out[k] = read_png(path, kind)
+                except OSError as exc:
+                    raise DamagedFileError(f"{path}: damaged PNG ({exc.__class__.__name__}); {REMEDY}") from None
+        shape = (self.height, self.width)
+        bad = [k for k, v in out.items() if v.shape[:2] != shape]
+        if bad:
+            raise DamagedFileError(f"{self.folder}: frame {index} ({', '.join(bad)}) is not "
+                                   f"{self.width}x{self.height} pixels; {REMEDY}")
+        return out

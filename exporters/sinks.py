@@ -29,8 +29,12 @@ class TrajectoryContext:
     order; dynamic parts in their object frame.
     dynamic_objects: names of the dynamic parts (the order of ``FrameRecord.object_matrices``).
     point_table: the ground-truth point set as stored in exports (``Simulator.point_table``).
-    modalities: names of the per-frame modalities being written (``--outputs``).
-    options: free-form per-run options (e.g. ``{"colmap_text": False}``).
+    modalities: names of the per-frame modalities being written (``--outputs``), in the
+    order of ``exporters.modalities.MODALITIES``.
+    options: free-form per-run options (e.g. ``{"colmap_text": False, "plan": site plan}``).
+    object_matrices (T, D, 4, 4): world_from_object of ``dynamic_objects`` at every frame.
+    clip: (near, far) planar depth limits of the rendered surfaces, metres.
+    scene_bounds (2, 3): world axis-aligned bounds (min, max) of every part over all frames.
     """
 
     folder: Path
@@ -48,6 +52,9 @@ class TrajectoryContext:
     point_table: dict
     modalities: tuple[str, ...]
     options: dict = field(default_factory=dict)
+    object_matrices: np.ndarray | None = None
+    clip: tuple[float, float] = (0.0, float("inf"))
+    scene_bounds: np.ndarray | None = None
 
 
 @dataclass
@@ -83,12 +90,30 @@ class Sink(Protocol):
 # name -> factory(context) -> Sink; filled by the modules that define sinks.
 SINKS: dict[str, Callable[[TrajectoryContext], Sink]] = {}
 
+# the modules whose imports register the exports (those not installed are skipped)
+SINK_MODULES = ("exporters.frames", "exporters.trajectory_sinks", "exporters.nerfstudio", "exporters.coco", "exporters.boxes3d")
+
+
+def load_sinks() -> dict[str, Callable[[TrajectoryContext], Sink]]:
+    """Import every module of :data:`SINK_MODULES` (registering their sinks) and return
+    :data:`SINKS`, in registration order."""
+    import importlib
+
+    for name in SINK_MODULES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:  # a missing dependency inside an existing module is an error
+                raise
+    return SINKS
+
 
 def register_sink(name: str):
     """Class decorator: ``@register_sink("coco")`` makes the sink available to the loop."""
 
     def wrap(factory):
-        if name in SINKS:
+        old = SINKS.get(name)
+        if old is not None and (old.__module__, old.__qualname__) != (factory.__module__, factory.__qualname__):
             raise ValueError(f"sink {name!r} is registered twice")
         SINKS[name] = factory
         return factory

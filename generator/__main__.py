@@ -19,8 +19,14 @@ from .cli_args import OneLineParser, int_at_least, positive_float, resolution
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
+from exporters.modalities import MODALITIES
 
 DEFAULTS = RunConfig()
+
+
+def _outputs(text: str | None) -> tuple[str, ...]:
+    """--outputs: the listed modality names (checked by RunConfig.validated), all by default."""
+    return tuple(n.strip() for n in text.split(",") if n.strip()) if text is not None else tuple(MODALITIES)
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -67,6 +73,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help=f"points per square metre of the ground-truth cloud for scoring, at most "
                         f"{MAX_SCORING_POINTS // 10**6} million points in all (default: {DEFAULTS.scoring_density:g})")
     p.add_argument("--colmap-text", action="store_true", help="also write the COLMAP models as text (.txt)")
+    p.add_argument("--outputs", default=None,
+                   help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
+                        + " (default: all; docs/format.md)")
     p.add_argument("--workers", type=int_at_least(1, "workers"), default=1,
                    help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
     p.add_argument("--shard", type=_shard, default=(0, 1),
@@ -84,7 +93,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         p.error("--seeds lists a seed twice")
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
-                            DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device)
+                            DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device,
+                            outputs=_outputs(args.outputs))
     try:
         args.config.validated()
     except ValueError as exc:

@@ -36,14 +36,17 @@ class RawPasses:
 @dataclass
 class RenderOutput:
     """What ``Simulator.render()`` returns; behaves as the paper's 3-tuple ``(rgb, depth, seg)``
-    (unpacking, indexing, slicing, ``len``) and holds the extra fields below.
+    (unpacking, integer indexing, slicing, ``len``), holds the fields below, and is keyed by
+    modality name (``out["depth"]``, ``out.outputs``; exporters/modalities.py).
 
     rgb: (H, W, 3) float32 display-referred (view transform applied), in [0, 1].
     depth: (H, W) float32 planar depth in metres, +inf where no surface.
-    seg: (H, W) int32 label ids (index into ``Simulator.labels``), -1 = unlabelled.
+    seg: (H, W) int32 label ids (index into ``Simulator.labels``), -1 = unlabelled
+        (modality ``label``).
     instance: (H, W) int32 object ids (index into ``Simulator.object_names``), -1 = none.
     rgb_linear: (H, W, 3) float32 scene-referred linear RGB (HDR).
     K, world_from_camera, frame: the camera and time the image was rendered with.
+    extra: further modalities by name (e.g. ``normal``, ``flow``) when they were asked for.
     """
 
     rgb: np.ndarray
@@ -54,6 +57,14 @@ class RenderOutput:
     K: np.ndarray
     world_from_camera: np.ndarray
     frame: int
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def outputs(self) -> dict[str, np.ndarray]:
+        """Modality name -> array, for every modality this render holds."""
+        base = {"rgb": self.rgb, "rgb_linear": self.rgb_linear, "depth": self.depth, "label": self.seg,
+                "instance": self.instance}
+        return {k: v for k, v in base.items() if v is not None} | dict(self.extra)
 
     def __iter__(self):
         return iter((self.rgb, self.depth, self.seg))
@@ -62,7 +73,13 @@ class RenderOutput:
         return 3
 
     def __getitem__(self, index):
-        """Indexes and slices like the paper's ``(rgb, depth, seg)`` tuple."""
+        """Indexes and slices like the paper's ``(rgb, depth, seg)`` tuple; a string key
+        gives that modality (``out["instance"]``)."""
+        if isinstance(index, str):
+            outputs = self.outputs
+            if index not in outputs:
+                raise KeyError(f"this render has no {index!r} (it has {', '.join(outputs)})")
+            return outputs[index]
         return (self.rgb, self.depth, self.seg)[index]
 
 

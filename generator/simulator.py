@@ -398,6 +398,16 @@ class Simulator(PaperAPI):
             for i, p in enumerate(self._parts)
         ]
 
+    def render_outputs(self, names=None, poses=None, object_matrices=None, index: int = 0) -> RenderOutput:
+        """The modalities ``names`` of the current view (default: all of
+        ``exporters.modalities.MODALITIES``: rgb, rgb_linear, depth, label, instance, normal,
+        flow, backward_flow), keyed by name (``out["flow"]``). Flow needs the trajectory:
+        ``poses`` (T, 4, 4) and ``object_matrices`` (T, D, 4, 4) of ``dynamic_objects`` at
+        every frame, this view being frame ``index`` (see generator/frame_outputs.py)."""
+        from .frame_outputs import render_outputs
+
+        return render_outputs(self, names, poses, object_matrices, index)
+
     def render(self, engine: str | None = None) -> RenderOutput:
         """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
 

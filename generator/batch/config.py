@@ -37,6 +37,7 @@ class RunConfig:
     scoring_density: float = 100.0
     colmap_text: bool = False
     device: str = "auto"
+    outputs: tuple[str, ...] = ()  # per-frame modalities to write (exporters/modalities.py); () = all
 
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
@@ -48,6 +49,10 @@ class RunConfig:
             raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (3840x2160)")
         if not 2 <= self.frames <= MAX_FRAMES:
             raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
+        if self.outputs:
+            from exporters.modalities import resolve
+
+            resolve(self.outputs)  # ValueError naming an unknown output
         area = site_area_lower_bound(self.scene_preset)
         for name, density, limit in (("points-density", self.points_density, MAX_SURFACE_POINTS),
                                      ("scoring-density", self.scoring_density, MAX_SCORING_POINTS)):
@@ -59,11 +64,13 @@ class RunConfig:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
+        d["outputs"] = list(self.outputs)
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "RunConfig":
-        return cls(**(d | {"resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"])}))
+        return cls(**(d | {"resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"]),
+                           "outputs": tuple(d.get("outputs", ()))}))
 
 
 def site_area_lower_bound(preset: str) -> float:

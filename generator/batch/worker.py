@@ -16,72 +16,7 @@ def emit(**event) -> None:
     print("@@" + json.dumps(event), flush=True)
 
 
-PREVIEW_FRAMES = 6  # rows of each trajectory's contact sheet
-
-
-def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False) -> tuple[list[float], int]:
-    """Render and track every frame of ``traj`` into ``out``: frames (EXR + PNG + depth PNG),
-    tracks.h5, trajectory.npz, sparse/0 (COLMAP), transforms.json, coverage.json and the
-    previews (contact_sheet.png; map.png when the site ``plan`` is given). Returns
-    (coverage per frame, visible point observations)."""
-    import numpy as np
-
-    from exporters.colmap import write_colmap_model
-    from exporters.frames import FrameWriter, frame_names
-    from exporters.nerfstudio import depth_png_name, write_depth_png, write_transforms
-    from exporters.previews import contact_sheet
-    from exporters.tracks import TrackWriter
-
-    writer = FrameWriter(out, sim.labels)
-    sim.reset_observations()
-    coverage: list[float] = []
-    tracks = 0
-    static = ~sim.dynamic_points_mask
-    observations = []  # per frame: visible static point indices and their pixel positions
-    colors = np.zeros((sim.num_points, 3), dtype=np.uint8)
-    coloured = np.zeros(sim.num_points, dtype=bool)
-    tracks_out = TrackWriter(out / "tracks.h5", sim.point_table(), sim.dynamic_objects, sim.labels, sim.K,
-                             sim.width, sim.height, seed=seed)
-    sheet_frames = set(np.linspace(0, len(traj) - 1, min(PREVIEW_FRAMES, len(traj))).round().astype(int).tolist())
-    sheet = []
-    for i, pose in enumerate(traj.poses):
-        sim.set_frame(1 + i)
-        sim.set_world_from_camera(pose, check_collisions=False)
-        r = sim.render()
-        points, _, visible = sim.compute_point_cloud()
-        writer.write(i, r.rgb, r.depth, r.seg, r.instance)
-        write_depth_png(out / depth_png_name(i), r.depth)
-        if i in sheet_frames:
-            sheet.append({"index": i, "rgb": r.rgb, "depth": r.depth, "label": r.seg})
-        tracks_out.add_frame(float(traj.timestamps[i]), pose, points, visible, sim.dynamic_object_matrices(), sim.coverage)
-        seen = np.flatnonzero(visible & static)
-        uv, _ = sim.project(points[seen])
-        observations.append((seen, uv))
-        new = ~coloured[seen]
-        rgb8 = (np.clip(r.rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)  # the PNG's pixels
-        px = np.minimum(np.floor(uv[new]).astype(int), [sim.width - 1, sim.height - 1])
-        colors[seen[new]] = rgb8[px[:, 1], px[:, 0]]
-        coloured[seen[new]] = True
-        coverage.append(sim.coverage)
-        tracks += int(visible.sum())
-        emit(event="frame")
-    tracks_out.close()
-    traj.save(out / "trajectory.npz")
-    names = [frame_names(i)[1] for i in range(len(traj))]
-    # static points never move, so the last frame's positions are theirs
-    write_colmap_model(out / "sparse" / "0", sim.K, sim.width, sim.height, traj.poses, names, observations, points,
-                       colors, text=colmap_text)
-    write_transforms(out / "transforms.json", sim.K, sim.width, sim.height, traj.poses, names,
-                     [depth_png_name(i) for i in range(len(traj))], traj.timestamps)
-    (out / "coverage.json").write_text(json.dumps({
-        "coverage": coverage, "units": "share of surface points observed at least once, after each frame (0..1)",
-        "auc": float(np.trapezoid(coverage, np.linspace(0, 1, len(coverage)))) if len(coverage) > 1 else coverage[0]}))
-    contact_sheet(out / "contact_sheet.png", sheet, sim.labels)
-    if plan is not None:
-        from ..scene.site_map import draw_map
-
-        draw_map(plan, out / "map.png", trajectory=traj.poses[:, :3, 3])
-    return coverage, tracks
+from .fly import fly  # noqa: E402  (the trajectory loop)
 
 
 def run(config: dict, seed: int, folder: Path) -> dict:
@@ -114,7 +49,8 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     summary = {"trajectories": {}, "render_device": sim.render_device}
     for kind in cfg.trajectories:
         traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
-        coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text)
+        coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text, cfg.outputs,
+                                       on_frame=lambda: emit(event="frame"))
         tracks += visible_tracks
         summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
     write_simulator_ground_truth(sim, folder / "ground_truth", seed, cfg.scoring_density)

@@ -1,0 +1,172 @@
+"""Per-frame modalities, declared once (bpy-free).
+
+Each entry of :data:`MODALITIES` says everything the rest of the code needs about one
+per-frame array: how it is produced (``"render"``: a Blender pass decoded by
+``generator/passes.py``; ``"geometry"``: computed from the scene's geometry at the pixel
+centres by ``compute(pixel_geometry)``), where it is stored (EXR part and channels, their
+EXR type, extra PNG files), how it decodes, how ``datasets`` transforms resample it, and
+how the contact sheet colours it. The simulator, the frame writer and reader, the
+datasets' transforms and the previews all loop over this table: adding a modality is one
+:func:`register_modality` call (docs/format.md lists the built-in ones).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+NONE_ID = -1  # ids (label, instance) where there is no surface / no object
+
+# resampling rules of datasets.transforms.Resize (Crop only slices)
+RESAMPLE = {
+    "area": "box filter when shrinking, bilinear when enlarging (colour)",
+    "nearest": "nearest pixel centre (ids: values are never blended)",
+    "bilinear": "bilinear at the new pixel centres on a continuous surface, nearest across depth edges",
+    "unit_vector": "as bilinear, then renormalised to unit length",
+    "flow": "as bilinear, then each component scaled by the resize ratio of its axis",
+}
+EXR_TYPES = {"HALF": np.float16, "FLOAT": np.float32, "UINT": np.uint32}
+
+
+@dataclass(frozen=True)
+class Modality:
+    """One per-frame modality.
+
+    name: key in ``RenderOutput.outputs``, ``FrameRecord.outputs``, dataset frames, ``--outputs``.
+    description: units and conventions (written into the files and docs).
+    source: ``"render"`` (a Blender pass) or ``"geometry"`` (``compute`` from the geometry).
+    channels: EXR channel names; one channel gives (H, W), several (H, W, C).
+    exr_type: ``HALF``, ``FLOAT`` or ``UINT`` (ids: int32 with -1 stored as uint32).
+    part: the EXR part holding it (``"frame"``: colour and floats; ``"ids"``: UINT ids, so
+        that readers of one component type open the first part), or ``None`` if it is not
+        stored in the EXR (``pngs`` only).
+    pngs: extra image files per frame: ``(prefix, kind)`` with kind ``"rgb8"`` (8-bit sRGB)
+        or ``"id16"`` (16-bit, id + 1, 0 = none), written as ``<prefix>_NNNNNN.png``.
+    resample: key of :data:`RESAMPLE`.
+    preview: ``"rgb"``, ``"depth"``, ``"labels"``, ``"ids"``, ``"normal"``, ``"flow"``, a
+        callable ``(array, labels) -> (H, W, 3) uint8``, or None (not on the contact sheet).
+    compute: for ``source="geometry"``: ``(generator.geometry.pixels.PixelGeometry) -> array``.
+    dtype: numpy type returned by the reader.
+    """
+
+    name: str
+    description: str
+    source: str
+    channels: tuple[str, ...]
+    exr_type: str
+    part: str | None
+    resample: str
+    preview: str | Callable | None = None
+    compute: Callable | None = None
+    pngs: tuple[tuple[str, str], ...] = ()
+    dtype: str = ""
+
+    def __post_init__(self):
+        if self.source not in ("render", "geometry"):
+            raise ValueError(f"modality {self.name!r}: source must be 'render' or 'geometry', got {self.source!r}")
+        if self.source == "geometry" and self.compute is None:
+            raise ValueError(f"modality {self.name!r}: a geometry modality needs compute")
+        if self.exr_type not in EXR_TYPES:
+            raise ValueError(f"modality {self.name!r}: exr_type must be one of {', '.join(EXR_TYPES)}")
+        if self.resample not in RESAMPLE:
+            raise ValueError(f"modality {self.name!r}: resample must be one of {', '.join(RESAMPLE)}")
+        if self.part not in (None, "frame", "ids") or (self.part == "ids") != (self.exr_type == "UINT"):
+            raise ValueError(f"modality {self.name!r}: UINT ids go to part 'ids', other types to 'frame'")
+        if not self.dtype:
+            object.__setattr__(self, "dtype", "int32" if self.exr_type == "UINT" else np.dtype(EXR_TYPES[self.exr_type]).name)
+
+    @property
+    def is_ids(self) -> bool:
+        return self.exr_type == "UINT"
+
+    def encode(self, array: np.ndarray) -> dict[str, np.ndarray]:
+        """The EXR channels (name -> contiguous (H, W) array of the EXR type) of ``array``."""
+        a = np.asarray(array)
+        want = 2 if len(self.channels) == 1 else 3
+        if a.ndim != want or (want == 3 and a.shape[2] != len(self.channels)):
+            shape = "(H, W)" if want == 2 else f"(H, W, {len(self.channels)})"
+            raise ValueError(f"{self.name} must have shape {shape}, got {a.shape}")
+        planes = [a] if want == 2 else [a[..., k] for k in range(a.shape[2])]
+        if self.is_ids:
+            if not np.issubdtype(a.dtype, np.integer):
+                raise ValueError(f"{self.name} must hold integer ids, got {a.dtype}")
+            if a.size and (a.min() < NONE_ID or a.max() > np.iinfo(np.int32).max):
+                raise ValueError(f"{self.name} ids must lie in [-1, 2^31 - 1]")
+            planes = [p.astype(np.int64).astype(np.int32).view(np.uint32) for p in planes]
+        t = EXR_TYPES[self.exr_type]
+        return {c: np.ascontiguousarray(p, dtype=t) for c, p in zip(self.channels, planes)}
+
+    def decode(self, channels: dict[str, np.ndarray]) -> np.ndarray:
+        """The array from its EXR channels (as :meth:`encode` wrote them)."""
+        planes = [np.asarray(channels[c]) for c in self.channels]
+        if self.is_ids:
+            planes = [np.ascontiguousarray(p, dtype=np.uint32).view(np.int32) for p in planes]
+        else:
+            planes = [p.astype(self.dtype, copy=False) for p in planes]
+        return planes[0] if len(planes) == 1 else np.stack(planes, axis=-1)
+
+
+MODALITIES: dict[str, Modality] = {}
+
+
+def register_modality(modality: Modality) -> Modality:
+    """Add a modality to the table (its name must be new); returns it."""
+    if modality.name in MODALITIES:
+        raise ValueError(f"modality {modality.name!r} is registered twice")
+    MODALITIES[modality.name] = modality
+    return modality
+
+
+def unregister_modality(name: str) -> None:
+    """Remove a modality (for tests that add their own)."""
+    MODALITIES.pop(name, None)
+
+
+def resolve(names=None) -> tuple[str, ...]:
+    """Modality names in table order: all by default, else the given ones (a comma-separated
+    string or an iterable); unknown names raise a ValueError listing the known ones."""
+    if names is None:
+        return tuple(MODALITIES)
+    if isinstance(names, str):
+        names = [n.strip() for n in names.split(",") if n.strip()]
+    names = list(names)
+    unknown = [n for n in names if n not in MODALITIES]
+    if unknown or not names:
+        raise ValueError(f"unknown output {', '.join(unknown) or '(none given)'}: choose from {', '.join(MODALITIES)}")
+    return tuple(n for n in MODALITIES if n in names)
+
+
+# ---- the built-in modalities ------------------------------------------------------------------
+
+register_modality(Modality(
+    "rgb", "display-referred sRGB in [0, 1] (Blender's view transform applied), 8-bit in rgb_NNNNNN.png",
+    "render", ("R", "G", "B"), "HALF", None, "area", preview="rgb", pngs=(("rgb", "rgb8"),), dtype="float32"))
+register_modality(Modality(
+    "rgb_linear", "scene-linear RGB (Blender's working space, Rec.709 primaries, D65), HDR",
+    "render", ("R", "G", "B"), "HALF", "frame", "area"))
+register_modality(Modality(
+    "depth", "planar depth (camera z) in metres at the pixel centre, +inf = no surface",
+    "render", ("Z",), "FLOAT", "frame", "bilinear", preview="depth"))
+register_modality(Modality(
+    "label", "semantic label id at the pixel centre (index into labels.json), -1 = unlabelled",
+    "render", ("label",), "UINT", "ids", "nearest", preview="labels", pngs=(("label", "id16"),)))
+register_modality(Modality(
+    "instance", "object id at the pixel centre (index into the object table), -1 = no object",
+    "render", ("instance",), "UINT", "ids", "nearest", preview="ids", pngs=(("instance", "id16"),)))
+register_modality(Modality(
+    "normal", "unit surface normal at the pixel centre, world frame, facing the camera; 0 = no surface",
+    "geometry", ("normal.X", "normal.Y", "normal.Z"), "FLOAT", "frame", "unit_vector", preview="normal",
+    compute=lambda g: g.world_normals()))
+register_modality(Modality(
+    "flow", "optical flow to the next frame in pixels (x, y): where the surface point at the pixel centre, "
+    "moving rigidly with its object, projects in the next frame, minus the pixel centre; NaN = no surface, "
+    "no next frame, or behind the next camera",
+    "geometry", ("flow.X", "flow.Y"), "FLOAT", "frame", "flow", preview="flow",
+    compute=lambda g: g.flow_to(g.index + 1)))
+register_modality(Modality(
+    "backward_flow", "optical flow to the previous frame in pixels (x, y), as flow; NaN = no surface, "
+    "no previous frame, or behind the previous camera",
+    "geometry", ("backward_flow.X", "backward_flow.Y"), "FLOAT", "frame", "flow", preview="flow",
+    compute=lambda g: g.flow_to(g.index - 1)))

@@ -1,0 +1,85 @@
+"""The trajectory loop: render every frame and hand it to every export (exporters/sinks.py).
+
+``fly`` only orchestrates: it builds the :class:`~exporters.sinks.TrajectoryContext`, makes
+one sink per registered export (frames, tracks, COLMAP, nerfstudio, coverage, previews,
+map, and whatever else registers itself), hands each sink every :class:`FrameRecord`, and
+closes them. What each file holds is the sink's business."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def object_matrices_over(sim, frames: int) -> np.ndarray:
+    """(T, D, 4, 4) world_from_object of the dynamic objects at trajectory frames 0..T-1
+    (animation frames 1..T); the Simulator is left at animation frame 1."""
+    out = []
+    for i in range(frames):
+        sim.set_frame(1 + i)
+        out.append(sim.dynamic_object_matrices())
+    sim.set_frame(1)
+    return np.stack(out) if out else np.zeros((0, 0, 4, 4))
+
+
+def scene_bounds(parts, object_matrices: np.ndarray, dynamic_objects: list[str]) -> np.ndarray:
+    """(2, 3) world bounds of every part at every frame (dynamic parts moved)."""
+    slot = {name: k for k, name in enumerate(dynamic_objects)}
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in parts:
+        if len(p.vertices) == 0:
+            continue
+        if p.dynamic:
+            box = np.array([p.vertices.min(0), p.vertices.max(0)])
+            corners = np.array([[x, y, z] for x in box[:, 0] for y in box[:, 1] for z in box[:, 2]])
+            m = object_matrices[:, slot[p.name]]
+            v = np.einsum("tij,cj->tci", m[:, :3, :3], corners) + m[:, None, :3, 3]
+            lo, hi = np.minimum(lo, v.reshape(-1, 3).min(0)), np.maximum(hi, v.reshape(-1, 3).max(0))
+        else:
+            lo, hi = np.minimum(lo, p.vertices.min(0)), np.maximum(hi, p.vertices.max(0))
+    return np.array([lo, hi])
+
+
+def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, outputs=None,
+        on_frame=None) -> tuple[list[float], int]:
+    """Render every frame of ``traj`` with the modalities ``outputs`` (default: all) and hand
+    them to every registered sink, writing into ``out``; then ``trajectory.npz``. ``on_frame()``
+    is called after each frame (progress). Returns
+    (coverage per frame, visible point observations)."""
+    from exporters.modalities import resolve
+    from exporters.sinks import FrameRecord, TrajectoryContext, load_sinks
+
+    names = resolve(outputs or None)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    T = len(traj)
+    matrices = object_matrices_over(sim, T)
+    parts = sim.scene_parts()
+    context = TrajectoryContext(
+        folder=out, kind=out.name, seed=seed, K=sim.K.copy(), width=sim.width, height=sim.height,
+        poses=np.asarray(traj.poses), timestamps=np.asarray(traj.timestamps), labels=list(sim.labels),
+        instances=sim.instance_table, parts=parts, dynamic_objects=sim.dynamic_objects, point_table=sim.point_table(),
+        modalities=names, options={"colmap_text": colmap_text, "plan": plan}, object_matrices=matrices,
+        clip=(float(sim.clip_start), float(sim.clip_end)),
+        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects))
+    sinks = [factory(context) for factory in load_sinks().values()]
+    sim.reset_observations()
+    coverage, tracks = [], 0
+    for i, pose in enumerate(context.poses):
+        sim.set_frame(1 + i)
+        sim.set_world_from_camera(pose, check_collisions=False)
+        r = sim.render_outputs(names, context.poses, matrices, i)
+        points, _, visible = sim.compute_point_cloud()
+        record = FrameRecord(i, float(context.timestamps[i]), pose, {n: r.outputs[n] for n in names}, points, visible,
+                             sim.dynamic_object_matrices(), sim.coverage)
+        for sink in sinks:
+            sink.add_frame(record)
+        coverage.append(sim.coverage)
+        tracks += int(visible.sum())
+        if on_frame is not None:
+            on_frame()
+    for sink in sinks:
+        sink.close()
+    traj.save(out / "trajectory.npz")
+    return coverage, tracks

@@ -1,0 +1,49 @@
+"""Every modality of the current view, by name (exporters/modalities.py), from the Simulator's
+public API: one Blender render for the ``render`` modalities, one pixel-centre ray cast
+(``render(engine="raycast")``) for the ``geometry`` ones (normals, optical flow, ...)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from exporters.modalities import MODALITIES, resolve
+
+from .geometry.pixels import PixelGeometry
+from .passes import RenderOutput
+
+
+def dynamic_slots(object_names: list[str], dynamic_objects: list[str]) -> np.ndarray:
+    """(P,) int64: each object's index into ``dynamic_objects`` (-1 for static objects)."""
+    where = {name: k for k, name in enumerate(dynamic_objects)}
+    return np.array([where.get(n, -1) for n in object_names], np.int64)
+
+
+def pixel_geometry(sim, poses: np.ndarray | None = None, object_matrices: np.ndarray | None = None,
+                   index: int = 0) -> PixelGeometry:
+    """The surface at every pixel centre of the current view, with the trajectory's motion:
+    ``poses`` (T, 4, 4) and ``object_matrices`` (T, D, 4, 4) of ``sim.dynamic_objects`` at
+    every frame (default: the current pose and matrices only, T = 1); the current view is
+    frame ``index`` of them."""
+    if poses is None:
+        poses, object_matrices, index = sim.get_world_from_camera()[None], sim.dynamic_object_matrices()[None], 0
+    poses = np.asarray(poses, np.float64)
+    if not np.allclose(poses[index], sim.get_world_from_camera(), atol=1e-9):
+        raise ValueError(f"poses[{index}] is not the Simulator's current pose")
+    g = sim.render_geometry(normals=True)
+    return PixelGeometry(sim.K, sim.width, sim.height, index, poses, g.depth, g.instance, g.normal,
+                         dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices)
+
+
+def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int = 0) -> RenderOutput:
+    """A :class:`RenderOutput` holding the modalities ``names`` (default: all registered) of
+    the current view; Blender renders only if a ``render`` modality is asked for."""
+    names = resolve(names)
+    if any(MODALITIES[n].source == "render" for n in names):
+        out = sim.render()
+    else:
+        out = RenderOutput(None, None, None, None, None, sim.K.copy(), sim.get_world_from_camera(), sim.frame)
+    computed = [n for n in names if MODALITIES[n].source == "geometry"]
+    if computed:
+        g = pixel_geometry(sim, poses, object_matrices, index)
+        out.extra.update({n: MODALITIES[n].compute(g) for n in computed})
+    return out
