@@ -12,6 +12,7 @@ from bpy_extras import anim_utils
 from ..scene.assets import Asset, Part
 from ..scene.meshes import MeshData
 from ..scene.site import SitePlan, fence_part, ground_part
+from ..scene.timeline import object_name
 from ..scene.taxonomy import CLASSES
 from . import session
 from .materials import make_material
@@ -70,13 +71,16 @@ def _collection(name: str):
     return coll
 
 
-def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: int = -1) -> list:
-    """Create the asset's objects; root parts are placed at ``position`` / ``yaw``."""
+def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: int = -1, uid: int | None = None) -> list:
+    """Create the asset's objects; root parts are placed at ``position`` / ``yaw``. With a
+    ``uid`` (a timeline's stage) objects get the names they have in every stage."""
     objects = []
     c, s = math.cos(yaw), math.sin(yaw)
     px, py = position
-    for part in asset.parts:
+    for number, part in enumerate(asset.parts):
         name = part.label or f"{asset.kind}Pivot"
+        if uid is not None:
+            name = object_name(name, uid, number)
         data = mesh_from_data(name, part.mesh, seed) if part.mesh is not None else None
         obj = bpy.data.objects.new(name, data)
         collection.objects.link(obj)
@@ -156,12 +160,15 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
     scene.render.fps_base = scene.render.fps / p.fps
     scene.unit_settings.system = "METRIC"
     seed = plan.seed
+    timeline = plan.stages > 1  # stable object names over the stages (docs/phases.md)
     with session.quiet():
-        add_asset(Asset("Ground", [ground_part(p.size)], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"))
+        add_asset(Asset("Ground", [ground_part(p.size)], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"),
+                  uid=0 if timeline else None)
         fences = [fence_part(a, b) for a, b in plan.fence_runs]
-        add_asset(Asset("Fence", fences, (0.0, 0.0)), (0.0, 0.0), 0.0, seed, _collection("Fence"))
+        add_asset(Asset("Fence", fences, (0.0, 0.0)), (0.0, 0.0), 0.0, seed, _collection("Fence"), uid=0 if timeline else None)
         for index, placed in enumerate(plan.placed):
-            add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index)
+            add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index,
+                      uid=placed.uid if timeline else None)
         lighting = _sun_and_sky(seed)
         lo, hi = plan.spawn_box
         spawn = bpy.data.objects.new("CameraSpawn", mesh_from_data("CameraSpawn", _box_data(lo, hi), seed))

@@ -25,9 +25,10 @@ class SiteResult:
 
 
 def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", preview: bool = True,
-               resolution: tuple[int, int] = (640, 480), **overrides) -> SiteResult:
+               resolution: tuple[int, int] = (640, 480), stage: int = 0, stages: int = 1, **overrides) -> SiteResult:
     """Build and save the site of ``seed``. ``overrides`` are :class:`SiteParams` fields
-    (size, density, layout, phase, frames, fps, ...). Imports bpy."""
+    (size, density, layout, phase, frames, fps, ...); ``stage`` of ``stages`` picks a stage
+    of the seed's timeline (docs/phases.md). Imports bpy."""
     from ..blender import session
     from ..blender.build import build_in_blender
     from .site_map import draw_map
@@ -37,7 +38,7 @@ def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", pre
     params = site_params(preset, **overrides)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    plan = plan_site(seed, params)
+    plan = plan_site(seed, params, stage, stages)
     counts = build_in_blender(plan, resolution)
     blend = out / "site.blend"
     session.save_blend(blend)

@@ -82,6 +82,7 @@ class PlacedAsset:
     position: tuple[float, float]  # asset origin on the ground, metres
     yaw: float  # radians
     footprint: Footprint  # the ground area it keeps for itself (world)
+    uid: int = 0  # the asset's identity over a timeline's stages (1 + its index in the stage-0 plan; docs/phases.md)
 
 
 @dataclass
@@ -96,13 +97,17 @@ class SitePlan:
     spawn_box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     camera: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None  # position, look-at
     skipped: dict[str, int] = field(default_factory=dict)
+    stage: int = 0  # which stage of a timeline of ``stages`` this plan is (docs/phases.md)
+    stages: int = 1
+    reserved: list[Footprint] = field(default_factory=list)  # ground kept free of assets (roads, gate access)
 
     def summary(self) -> dict:
         kinds: dict[str, int] = {}
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
+        timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return {"seed": self.seed, "params": asdict(self.params), "assets": kinds, "skipped": self.skipped,
-                "hook_height_m": self.hook_height}
+                "hook_height_m": self.hook_height} | timeline
 
 
 def _local_bounds(asset: Asset) -> tuple[np.ndarray, np.ndarray]:
@@ -206,11 +211,20 @@ PROP_KINDS = (  # (builder, relative frequency, prefers the outer band along the
 )
 
 
-def plan_site(seed: int, params: SiteParams) -> SitePlan:
-    """Place every asset of the site of ``seed`` (same seed and parameters, same plan)."""
+def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:
+    """Place every asset of the site of ``seed`` (same seed and parameters, same plan).
+
+    With ``stages`` > 1 the site is one of a timeline (docs/phases.md): ``stage`` 0 is the
+    seed's plan, and stage k is stage k - 1 with the deltas drawn from stage k's own random
+    streams (:mod:`.timeline`): buildings grow, cranes slew, materials come and go,
+    machinery moves. Cranes and the camera volume are sized for the timeline's last stage,
+    so they are the same in every stage. ``stages`` = 1 gives the site as it always was."""
+    from .timeline import check_stage
+
     params = params.validated()
+    check_stage(stage, stages)
     rng = stream(seed, "site-layout")
-    plan = SitePlan(seed, params)
+    plan = SitePlan(seed, params, stage=stage, stages=stages)
     half = params.size / 2
     road_half = half - params.road_inset
     plan.road = _road_loop(road_half, 8.0)
@@ -220,6 +234,7 @@ def plan_site(seed: int, params: SiteParams) -> SitePlan:
     gate = (-4.0, 4.0)
     reserved.append(Footprint((0.0, -(road_half + half) / 2), (gate[1] - gate[0], half - road_half)))  # gate access
     placer = _Placer(half - 1.0, reserved)
+    plan.reserved = list(reserved)
     inner = road_half - w / 2 - 1.0
 
     # fence along the boundary, 0.5 m inside, with a gate on the south side
@@ -236,7 +251,9 @@ def plan_site(seed: int, params: SiteParams) -> SitePlan:
     for k in range(n_build):
         brng = stream(seed, "asset", "Building", k)
         phase = params.phase if params.phase is not None else float(brng.uniform(0.25, 1.0))
-        asset = structures.building(brng, phase, params.floors, max_length=2 * inner * (0.9 if n_build == 1 else 0.6))
+        max_length = 2 * inner * (0.9 if n_build == 1 else 0.6)
+        asset = structures.building(brng, phase, params.floors, max_length=max_length)
+        asset.info["design"] = (k, phase, max_length)  # what a later stage rebuilds it from (.timeline)
         yaw0 = 0.0 if params.layout == "grid" else float(brng.uniform(-0.3, 0.3))
         cands = [((brng.uniform(-inner, inner), brng.uniform(-inner, inner)), yaw0 + brng.choice([0, math.pi / 2])) for _ in range(300)]
         placed = placer.try_place(asset, cands)
@@ -245,6 +262,10 @@ def plan_site(seed: int, params: SiteParams) -> SitePlan:
             continue
         plan.placed.append(placed)
         building_plans.append(placed)
+    if stages > 1:
+        from .timeline import grow_buildings
+
+        grow_buildings(plan, building_plans, stages - 1)  # every building as at the timeline's last stage
     tallest = max((p.asset.info["height"] for p in building_plans), default=10.0)
     plan.hook_height = tallest + 4.0
 
@@ -275,7 +296,14 @@ def plan_site(seed: int, params: SiteParams) -> SitePlan:
                     break
             if not ok:
                 continue
+            state_before = crng.bit_generator.state
             asset = structures.tower_crane(crng, hook, jib, params.frames, params.fps)
+            if stages > 1:  # the same draws, the stage's heading
+                from .timeline import slew_offset
+
+                rebuild = np.random.Generator(np.random.PCG64())
+                rebuild.bit_generator.state = state_before
+                asset = structures.tower_crane(rebuild, hook, jib, params.frames, params.fps, slew_offset(seed, k, stage))
             placed = placer.try_place(asset, [((pos[0], pos[1]), float(crng.uniform(0, math.pi / 2)))])
             if placed is not None:
                 plan.placed.append(placed)
@@ -326,6 +354,13 @@ def plan_site(seed: int, params: SiteParams) -> SitePlan:
         else:
             plan.placed.append(placed)
 
+    for i, p in enumerate(plan.placed):
+        p.uid = i + 1
+    if stages > 1:
+        from .timeline import advance
+
+        grow_buildings(plan, building_plans, stage)
+        advance(plan, inner, (band_lo, band_hi), centres)
     top = max(plan.hook_height - 3.0, tallest + 6.0)
     plan.spawn_box = ((-half + 2.0, -half + 2.0, 1.5), (half - 2.0, half - 2.0, top))
     plan.camera = ((-half * 0.55, -half * 0.95, min(20.0, top)), (0.0, 0.0, 2.0))

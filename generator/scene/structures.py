@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import dataclass
+from typing import Callable
+
 from .assets import Asset, Keyframes, Part
 from .meshes import MeshBuilder
 
@@ -11,14 +14,29 @@ TUBE = 0.0483 / 2  # scaffold tube radius, metres
 TUBE_SEGMENTS = 10
 
 
-def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], max_length: float = 60.0) -> Asset:
+@dataclass(frozen=True)
+class Growth:
+    """A later stage of a building (docs/phases.md): ``built`` floors of concrete frame and
+    ``enclosed`` floors of brick infill (from the ground up), at least the building's own at
+    stage 0. ``floor_rng(k)`` gives the random stream of infill floor ``k`` for floors beyond
+    those the building drew itself, so the draws of every other part stay as at stage 0."""
+
+    built: int
+    enclosed: int
+    floor_rng: Callable[[int], np.random.Generator]
+
+
+def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], max_length: float = 60.0,
+             growth: Growth | None = None) -> Asset:
     """A reinforced-concrete frame under construction, centred on the origin.
 
     Bays of 5.5-7.5 m, floor-to-floor 3.0-3.5 m, slabs 0.2-0.3 m with a stair opening,
     columns 0.35-0.55 m, a core with door openings running ahead of the slabs, starter bars
     and column formwork on the top slab, and scaffolding on one or two long facades.
     ``phase`` in [0, 1] is the share of the planned floors already built (at least one);
-    the footprint, scaffolding included, stays within ``max_length`` metres.
+    the footprint, scaffolding included, stays within ``max_length`` metres. ``growth``
+    builds a later stage of the same building: every random draw is made as at stage 0, so
+    what a stage has in common with the previous one is the same geometry.
     """
     sx, sy = rng.uniform(5.5, 7.5), rng.uniform(5.5, 7.5)
     fit_x = max(2, int((max_length - 4.0) // sx))
@@ -27,7 +45,12 @@ def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], ma
     col = rng.uniform(0.35, 0.55)
     h, t = rng.uniform(3.0, 3.5), rng.uniform(0.2, 0.3)
     planned = int(rng.integers(floors[0], floors[1] + 1))
-    built = max(1, int(round(phase * planned)))
+    built = own_built = max(1, int(round(phase * planned)))
+    if growth is not None:
+        if not own_built <= growth.built <= planned or not max(0, own_built - 2) <= growth.enclosed <= growth.built:
+            raise ValueError(f"building growth {growth.built} floors built, {growth.enclosed} enclosed is outside "
+                             f"[{own_built}, {planned}] built and [{max(0, own_built - 2)}, built] enclosed")
+        built = growth.built
     lx, ly = nx * sx, ny * sy
     x0, x1, y0, y1 = -lx / 2 - 0.3, lx / 2 + 0.3, -ly / 2 - 0.3, ly / 2 + 0.3
     gx = -lx / 2 + sx * np.arange(nx + 1)
@@ -84,16 +107,20 @@ def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], ma
                 formwork_props.box((0.15, 0.15, 0.008), (x, y, ze - 0.004), material="steel_painted")
 
     # brick infill with window openings on completed floors (all but the top two), glazed below
-    enclosed = max(0, built - 2)
+    own_enclosed = max(0, own_built - 2)
+    enclosed = own_enclosed if growth is None else growth.enclosed
     walls = MeshBuilder()
-    for k in range(enclosed):
+    for k in range(max(enclosed, own_enclosed)):  # the building's own floors draw from rng even when not built
         zb, ze = k * h + t, (k + 1) * h
         glazed = k < enclosed - 1
+        frng = rng if k < own_enclosed else growth.floor_rng(k)
         for along_x, line, ticks in ((True, gy[0], gx), (True, gy[-1], gx), (False, gx[0], gy), (False, gx[-1], gy)):
             for a0, a1 in zip(ticks[:-1], ticks[1:]):
-                if rng.random() < 0.1:
+                if frng.random() < 0.1:
                     continue  # a bay left open (deliveries)
-                _infill_bay(walls, along_x, line, a0 + col / 2, a1 - col / 2, zb, ze, rng, glazed)
+                win = frng.uniform(1.2, 2.4)
+                if k < enclosed:
+                    _infill_bay(walls, along_x, line, a0 + col / 2, a1 - col / 2, zb, ze, win, glazed)
 
     # top slab: starter bars on every column, formwork around some of them
     top_z = built * h + t
@@ -157,6 +184,7 @@ def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], ma
              Part("Scaffolding", scaffold.build())]
     depth = 2 * (y1 + 0.3 + 0.73 + 0.3)
     return Asset("Building", parts, (x1 - x0 + 0.6, depth), info={"floors_built": built, "floors_planned": planned,
+                                                                      "floors_enclosed": enclosed,
                                                                       "height": top_z + 2.0, "floor_height": h})
 
 
@@ -169,12 +197,13 @@ def _free_spans(a: float, b: float, blocked: list[tuple[float, float]]) -> list[
 
 
 def _infill_bay(b: MeshBuilder, along_x: bool, line: float, a0: float, a1: float, zb: float, ze: float,
-                rng: np.random.Generator, glazed: bool) -> None:
+                window: float, glazed: bool) -> None:
     """A 0.2 m brick wall between two columns with a window opening (sill 0.9 m, head
-    2.2 m), optionally glazed. ``along_x``: the wall runs along x at y = ``line``."""
+    2.2 m) ``window`` metres wide (at most the span less 1 m), optionally glazed. ``along_x``:
+    the wall runs along x at y = ``line``."""
     thick = 0.2
     span = a1 - a0
-    win = min(span - 1.0, rng.uniform(1.2, 2.4))
+    win = min(span - 1.0, window)
     sill, head = zb + 0.9, min(zb + 2.2, ze - 0.2)
     pieces = [((a0, a1), (zb, sill)), ((a0, a1), (head, ze))]
     if win > 0.4:
@@ -229,10 +258,12 @@ def _lattice_member(b: MeshBuilder, p0, p1, radius: float, material: str) -> Non
     b.cylinder(radius, p0, p1, segments=8, material=material)
 
 
-def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float, frames: int, fps: float) -> Asset:
+def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float, frames: int, fps: float,
+                slew_offset: float = 0.0) -> Asset:
     """A flat-top tower crane: lattice mast on a concrete foundation, slewing jib and
     counter-jib with concrete counterweights, cab, a trolley moving along the jib and a hook
-    block hanging at ``hook_height`` metres. It slews at 0.3-0.9 turns per minute."""
+    block hanging at ``hook_height`` metres. It slews at 0.3-0.9 turns per minute, starting
+    ``slew_offset`` radians from its drawn heading (a later stage of a timeline)."""
     side = rng.uniform(1.6, 2.2)
     section = rng.uniform(3.0, 5.0)
     mast_top = hook_height + 6.0
@@ -286,7 +317,7 @@ def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float,
 
     # animation: slewing (linear), trolley travel (piecewise linear, seeded)
     omega = rng.uniform(0.3, 0.9) * 2 * np.pi / 60 * rng.choice([-1, 1])  # rad/s, under 1 turn/min
-    yaw0 = rng.uniform(0, 2 * np.pi)
+    yaw0 = rng.uniform(0, 2 * np.pi) + slew_offset
     slew_keys = Keyframes(np.array([1, frames]), rotation=np.array([[0, 0, yaw0], [0, 0, yaw0 + omega * (frames - 1) / fps]]))
     n_keys = 4
     key_frames = np.linspace(1, frames, n_keys).round().astype(int)
