@@ -14,7 +14,8 @@ from pathlib import Path
 
 from trajectories import KINDS
 
-from .batch.config import MAX_FRAMES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
+from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
+from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS
 from .cli_args import OneLineParser, int_at_least, positive_float, resolution
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
@@ -76,8 +77,24 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
-    p.add_argument("--workers", type=int_at_least(1, "workers"), default=1,
-                   help="seeds processed at once, one process each (default: 1; Cycles already uses every core)")
+    p.add_argument("--phases", type=int_at_least(1, "phases", MAX_PHASES), default=1,
+                   help=f"stages of each site's timeline, 1 to {MAX_PHASES}: phase_K/ folders flown along the same "
+                        "trajectories plus changes.h5 (default: 1, one site as before; docs/phases.md)")
+    p.add_argument("--workers", type=int_at_least(1, "workers"), default=None,
+                   help="local executor: seeds processed at once, one process each (default: 1; Cycles already "
+                        "uses every core)")
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where the seeds run: local (worker processes on this machine; default) or ray (one Ray "
+                        "task per seed on a Ray cluster; --out must be a folder every node sees; docs/scale.md)")
+    p.add_argument("--ray-address", default=None,
+                   help="ray: the cluster's HOST:PORT as `ray start --head` prints it, or auto (default: "
+                        "$RAY_ADDRESS if set, else a local Ray started for this run)")
+    p.add_argument("--cpus-per-seed", type=positive_float(), default=None,
+                   help=f"ray: CPUs each seed reserves; a node runs (its CPUs / N) seeds at once "
+                        f"(default: {DEFAULT_CPUS_PER_SEED:g})")
+    p.add_argument("--retries", type=int_at_least(0, "retries", 100), default=None,
+                   help=f"ray: how many times a seed is run again when its worker process or its node dies "
+                        f"(default: {DEFAULT_RETRIES})")
     p.add_argument("--shard", type=_shard, default=(0, 1),
                    help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
     p.add_argument("--overwrite", action="store_true",
@@ -91,10 +108,17 @@ def parse_args(argv=None) -> argparse.Namespace:
     args = p.parse_args(argv)
     if len(set(args.seeds)) != len(args.seeds):
         p.error("--seeds lists a seed twice")
+    ray_only = [o for o, v in (("--ray-address", args.ray_address), ("--cpus-per-seed", args.cpus_per_seed),
+                               ("--retries", args.retries)) if v is not None]
+    if args.executor != "ray" and ray_only:
+        p.error(f"{ray_only[0]} applies to --executor ray")
+    if args.executor == "ray" and args.workers is not None:
+        p.error("--workers applies to the local executor; with --executor ray each node runs as many seeds as its "
+                "CPUs allow (--cpus-per-seed)")
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device,
-                            outputs=_outputs(args.outputs))
+                            outputs=_outputs(args.outputs), phases=args.phases)
     try:
         args.config.validated()
     except ValueError as exc:
@@ -138,23 +162,33 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
+    from .batch.executors import ExecutorError, make_executor
     from .batch.runner import Options, exit_code, run_seeds
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
-    opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers)
+    opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers or 1)
+    try:
+        executor = make_executor(args.executor, args.out, workers=opts.workers, address=args.ray_address,
+                                 cpus_per_seed=args.cpus_per_seed or DEFAULT_CPUS_PER_SEED,
+                                 retries=DEFAULT_RETRIES if args.retries is None else args.retries)
+    except ExecutorError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
     try:
-        results = run_seeds(args.out, seeds, cfg, opts)
+        results = run_seeds(args.out, seeds, cfg, opts, executor)
     except KeyboardInterrupt:
         print("interrupted: unfinished seeds were removed; rerun the same command to finish them", file=sys.stderr)
         return 130
+    finally:
+        executor.close()
     results = sorted(results, key=lambda r: seeds.index(r.seed))
     print(f"\n{'seed':>8}  {'status':<8} {'frames':>6} {'points':>10} {'visible tracks':>15} {'time':>7}")
     for r in results:
         s = r.summary
         print(f"{r.seed:>8}  {r.status:<8} {s.get('frames', '-'):>6} {s.get('points', 0):>10,} "
-              f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.status != "done" else ""))
+              f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.message else ""))
     failed = [r for r in results if r.status == "failed"]
     if failed:
         print(f"{len(failed)} seed(s) failed; their partial output is in {args.out}/.seed_*.partial", file=sys.stderr)

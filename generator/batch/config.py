@@ -15,6 +15,7 @@ MAX_PIXELS = 3840 * 2160  # 4K UHD: a render peaks at ~920 bytes a pixel (measur
 MAX_FRAMES = 10_000  # per trajectory; the site's animation set-up grows faster than linearly past this
 MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
 MAX_SCORING_POINTS = 25_000_000  # ground-truth cloud: ~220 bytes a point at peak (measured), ~5.5 GB
+MAX_PHASES = 16  # stages of a timeline (generator.scene.timeline.MAX_STAGES)
 MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every frame
 
 
@@ -38,6 +39,7 @@ class RunConfig:
     colmap_text: bool = False
     device: str = "auto"
     outputs: tuple[str, ...] = ()  # per-frame modalities to write (exporters/modalities.py); () = all
+    phases: int = 1  # stages of the site's timeline, each in phase_K/ (generator/batch/phases.py, docs/phases.md)
 
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
@@ -49,6 +51,8 @@ class RunConfig:
             raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (3840x2160)")
         if not 2 <= self.frames <= MAX_FRAMES:
             raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
+        if not (isinstance(self.phases, int) and 1 <= self.phases <= MAX_PHASES):
+            raise ValueError(f"phases must be an integer from 1 to {MAX_PHASES}, got {self.phases!r}")
         if self.outputs:
             from exporters.modalities import resolve
 
@@ -65,6 +69,8 @@ class RunConfig:
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
+        if self.phases == 1:
+            del d["phases"]  # a one-stage run's config reads as before timelines existed
         return d
 
     @classmethod

@@ -35,6 +35,10 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     from .config import RunConfig, check_point_budget, plan_trajectory
 
     cfg = RunConfig.from_dict(config).validated()
+    if cfg.phases > 1:  # a timeline of the site: phase_K/ folders and changes.h5 (docs/phases.md)
+        from .phases import run_phases
+
+        return run_phases(cfg, seed, folder, emit)
     t0 = time.perf_counter()
     site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames))
     sim = Simulator(site.blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
