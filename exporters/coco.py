@@ -1,0 +1,170 @@
+"""Instance masks and 2D boxes of a trajectory in COCO format (``<kind>/coco.json``).
+
+Written by the ``coco`` sink from the frames' ``instance`` maps (pixel-centre object ids) and
+read back by :class:`CocoReader`; pycocotools opens the file as it is. Schema (docs/format.md):
+
+- ``categories``: the label table, ``id`` = label id + 1 (COCO keeps 0 for "no object"),
+  ``name`` the class, ``label_id`` our label id.
+- ``images``: one per frame, ``id`` = frame index + 1, ``file_name`` the frame's PNG,
+  ``width``, ``height``, ``frame`` (0-based index) and ``timestamp`` (seconds).
+- ``annotations``: one per instance with at least one pixel in the frame: ``segmentation``
+  (compressed RLE, ``size`` [H, W]), ``area`` (pixels), ``bbox`` [x, y, w, h] the tight box of
+  those pixels (pixel edges: the top-left image corner is (0, 0)), ``iscrowd`` 0,
+  ``category_id``, ``instance_id`` (the ``instance`` map's id, index into the object table),
+  ``object`` (its name) and ``amodal_bbox`` [x, y, w, h]: the box of the whole object's
+  triangles projected into the image, clipped to the part beyond the camera's clip start
+  and inside the image, ignoring occlusion (``generator.geometry.boxes.amodal_box``; float pixels).
+- ``info``: ``format_version``, ``conventions``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pycocotools.mask as mask_utils
+
+from generator.geometry.boxes import amodal_box, mask_box, mesh_outline, part_world_matrices
+
+from . import FORMAT_VERSION
+from .frames import frame_names
+from .hdf5 import DamagedFileError, REMEDY
+from .sinks import FrameRecord, TrajectoryContext, register_sink
+
+FILE_NAME = "coco.json"
+CONVENTIONS = ("pixels; bbox and amodal_bbox [x, y, w, h] with the image's top-left corner at (0, 0) (the top-left "
+               "pixel's centre is (0.5, 0.5)); masks from the instance id at each pixel centre; category_id = label id + 1; "
+               "image id = frame index + 1")
+
+
+def category_id(label_id: int) -> int:
+    """COCO category id of one of our label ids (COCO reserves 0)."""
+    return int(label_id) + 1
+
+
+def encode_masks(instance: np.ndarray, ids: np.ndarray) -> list[dict]:
+    """Compressed RLE (pycocotools) of ``instance == id`` for every id, counts as str."""
+    if len(ids) == 0:
+        return []
+    masks = np.asfortranarray((instance[:, :, None] == np.asarray(ids)[None, None, :]).astype(np.uint8))
+    rles = mask_utils.encode(masks)
+    return [{"size": [int(r["size"][0]), int(r["size"][1])], "counts": r["counts"].decode("ascii")} for r in rles]
+
+
+def _xywh(box) -> list[float]:
+    x0, y0, x1, y1 = box
+    return [x0, y0, x1 - x0, y1 - y0]
+
+
+@register_sink("coco")
+class CocoWriter:
+    """Collects one trajectory's annotations frame by frame; :meth:`close` writes coco.json."""
+
+    def __init__(self, context: TrajectoryContext):
+        self.context = context
+        self.path = Path(context.folder) / FILE_NAME
+        self.images: list[dict] = []
+        self.annotations: list[dict] = []
+        self.outlines: dict[int, tuple] = {}  # instance id -> mesh_outline, computed on first sight
+        self.near = float(getattr(context, "clip", (0.0, None))[0])  # the camera's clip start, metres
+
+    def add_frame(self, frame: FrameRecord) -> None:
+        ctx = self.context
+        if "instance" not in frame.outputs:  # --outputs without instance: nothing to annotate
+            return
+        instance = np.asarray(frame.outputs["instance"])
+        self.images.append({"id": frame.index + 1, "file_name": frame_names(frame.index)[1], "width": ctx.width,
+                            "height": ctx.height, "frame": frame.index, "timestamp": float(frame.timestamp)})
+        ids = np.unique(instance)
+        ids = ids[ids >= 0]
+        matrices = part_world_matrices(ctx.parts, ctx.dynamic_objects, frame.object_matrices)
+        for iid, rle in zip(ids.tolist(), encode_masks(instance, ids)):
+            mask = instance == iid
+            part, row = ctx.parts[iid], ctx.instances[iid]
+            m = matrices[iid]
+            if iid not in self.outlines:
+                self.outlines[iid] = mesh_outline(part.faces)
+            amodal = amodal_box(part.vertices @ m[:3, :3].T + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
+                                ctx.width, ctx.height, self.outlines[iid], near=self.near)
+            tight = mask_box(mask)
+            self.annotations.append({
+                "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),
+                "segmentation": rle, "area": int(mask.sum()), "bbox": [float(v) for v in _xywh(tight)], "iscrowd": 0,
+                "instance_id": int(iid), "object": row["object"],
+                "amodal_bbox": _xywh(amodal) if amodal is not None else [float(v) for v in _xywh(tight)]})
+
+    def close(self) -> Path | None:
+        ctx = self.context
+        if "instance" not in ctx.modalities:
+            return None
+        doc = {"info": {"description": f"buildee-sites seed {ctx.seed}, trajectory {ctx.kind}",
+                        "format_version": FORMAT_VERSION, "conventions": CONVENTIONS},
+               "licenses": [],
+               "categories": [{"id": category_id(i), "name": name, "supercategory": "construction_site", "label_id": i}
+                              for i, name in enumerate(ctx.labels)],
+               "images": self.images, "annotations": self.annotations}
+        self.path.write_text(json.dumps(doc, separators=(",", ":")))
+        return self.path
+
+
+class CocoReader:
+    """A trajectory's coco.json: :meth:`frame` gives one frame's annotations as arrays.
+    A file of another format version or structure raises :class:`DamagedFileError`."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        try:
+            doc = json.loads(self.path.read_bytes())
+        except FileNotFoundError:
+            raise DamagedFileError(f"{self.path}: no such file; {REMEDY}") from None
+        except (OSError, ValueError) as exc:
+            raise DamagedFileError(f"{self.path}: unreadable COCO file ({exc.__class__.__name__}); {REMEDY}") from None
+        try:
+            version = doc["info"]["format_version"]
+            if version != FORMAT_VERSION:
+                raise DamagedFileError(f"{self.path}: format {version!r}, this reader reads {FORMAT_VERSION} (regenerate "
+                                       "the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+            self.categories = {c["id"]: c for c in doc["categories"]}
+            self.images = {int(im["frame"]): im for im in doc["images"]}
+            by_image: dict[int, list] = {im["id"]: [] for im in doc["images"]}
+            for a in doc["annotations"]:
+                by_image[a["image_id"]].append(a)
+            self._by_frame = {f: by_image[im["id"]] for f, im in self.images.items()}
+        except (KeyError, TypeError) as exc:
+            raise DamagedFileError(f"{self.path}: not a coco.json of this format ({exc.__class__.__name__}: {exc}); "
+                                   f"{REMEDY}") from None
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def annotations(self, frame: int) -> list[dict]:
+        """The raw COCO annotations of frame ``frame`` (0-based)."""
+        return self._by_frame[frame]
+
+    def frame(self, frame: int) -> dict:
+        """Frame ``frame``'s instances as arrays (n = instances with pixels): ``instance_id``,
+        ``label`` (our label id), ``category_id``, ``area`` (n,) ints; ``bbox`` and
+        ``amodal_bbox`` (n, 4) float64 as (x0, y0, x1, y1) pixel edges; ``masks`` is not
+        included: instance k's mask is ``frame.instance == instance_id[k]`` (the RLE decodes
+        to exactly that; :meth:`masks` decodes them)."""
+        anns = self._by_frame[frame]
+
+        def xyxy(key):
+            b = np.array([a[key] for a in anns], np.float64).reshape(-1, 4)
+            return np.column_stack([b[:, :2], b[:, :2] + b[:, 2:]])
+
+        return {"instance_id": np.array([a["instance_id"] for a in anns], np.int32),
+                "category_id": np.array([a["category_id"] for a in anns], np.int32),
+                "label": np.array([self.categories[a["category_id"]]["label_id"] for a in anns], np.int32),
+                "area": np.array([a["area"] for a in anns], np.int64),
+                "bbox": xyxy("bbox"), "amodal_bbox": xyxy("amodal_bbox")}
+
+    def masks(self, frame: int) -> np.ndarray:
+        """(n, H, W) bool decoded masks of frame ``frame``, in :meth:`frame`'s order."""
+        anns = self._by_frame[frame]
+        im = self.images[frame]
+        if not anns:
+            return np.zeros((0, im["height"], im["width"]), bool)
+        rles = [{"size": a["segmentation"]["size"], "counts": a["segmentation"]["counts"].encode("ascii")} for a in anns]
+        return np.moveaxis(mask_utils.decode(rles), -1, 0).astype(bool)

@@ -1,0 +1,241 @@
+"""Boxes of rigid parts, bpy-free: oriented 3D boxes and 2D image boxes.
+
+- :func:`upright_box`: the box of a point set whose third axis is the frame's Z axis and
+  whose footprint is the minimum-area rectangle around the points' projection on the XY
+  plane (site objects stand upright, so in the world frame this is the tightest upright
+  box; its yaw is that of a hull edge, a standard property of minimum-area rectangles).
+- :meth:`Box3D.transformed`: the same box carried by an object's world_from_object matrix.
+- :func:`amodal_box`: the 2D box of a whole triangle mesh projected into the image, clipped
+  to the image (what the object would cover if nothing occluded it).
+- :func:`mask_box`: the tight box of a pixel mask.
+
+2D boxes are (x0, y0, x1, y1) in pixels, with the image's top-left corner at (0, 0) and the
+top-left pixel's centre at (0.5, 0.5) (docs/conventions.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import world_to_camera
+
+NEAR = 1e-6  # metres: geometry at planar depth below this is treated as behind the camera
+
+
+@dataclass(frozen=True)
+class Box3D:
+    """An oriented box: ``centre`` (3,) metres, ``size`` (3,) metres (full edge lengths along
+    the box's own axes), ``rotation`` (3, 3) whose columns are the box axes in the outer frame
+    (outer_from_box). A point p is inside when ``|rotation.T @ (p - centre)| <= size / 2``."""
+
+    centre: np.ndarray
+    size: np.ndarray
+    rotation: np.ndarray
+
+    def corners(self) -> np.ndarray:
+        """(8, 3) corners; corner k lies at -size/2 or +size/2 along the box's x, y, z axes
+        as bits 2, 1, 0 of k are 0 or 1."""
+        signs = np.array([[(k >> 2) & 1, (k >> 1) & 1, k & 1] for k in range(8)], float) * 2 - 1
+        return self.centre + (signs * (self.size / 2)) @ self.rotation.T
+
+    def contains(self, points: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
+        """(n,) bool: the points lie in the box, within ``tolerance`` metres."""
+        local = (np.asarray(points, float) - self.centre) @ self.rotation
+        return np.all(np.abs(local) <= self.size / 2 + tolerance, axis=1)
+
+    def transformed(self, matrix: np.ndarray) -> "Box3D":
+        """The box in the frame ``matrix`` maps to (e.g. world_from_object). Scale in the
+        matrix is folded into ``size``; the matrix must not shear (rigid times axis scale)."""
+        m = np.asarray(matrix, float)
+        axes = m[:3, :3] @ self.rotation
+        lengths = np.linalg.norm(axes, axis=0)
+        u, _, vt = np.linalg.svd(axes / np.where(lengths > 0, lengths, 1.0))
+        rotation = u @ vt  # the nearest rotation (exact when the matrix does not shear)
+        return Box3D(m[:3, :3] @ self.centre + m[:3, 3], self.size * lengths, rotation)
+
+
+def upright_box(points: np.ndarray) -> Box3D:
+    """The upright box of ``points`` (n, 3) with the minimum footprint area (see the module
+    docstring). Its x axis has a yaw in [0, 90) degrees; an empty set gives a zero box."""
+    p = np.asarray(points, float)
+    if len(p) == 0:
+        return Box3D(np.zeros(3), np.zeros(3), np.eye(3))
+    xy = _hull_2d(p[:, :2])
+    angle = _min_area_angle(xy)
+    c, s = np.cos(angle), np.sin(angle)
+    rot2 = np.array([[c, -s], [s, c]])
+    local = xy @ rot2  # coordinates along the box axes
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    z0, z1 = p[:, 2].min(), p[:, 2].max()
+    centre = np.append(rot2 @ ((lo + hi) / 2), (z0 + z1) / 2)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return Box3D(centre, np.append(hi - lo, z1 - z0), rotation)
+
+
+def _hull_2d(xy: np.ndarray) -> np.ndarray:
+    """Vertices of the convex hull of 2D points (Andrew's monotone chain; collinear and
+    repeated points are fine)."""
+    pts = np.unique(xy, axis=0)
+    if len(pts) < 3:
+        return pts
+
+    def chain(points):
+        out: list = []
+        for q in points:
+            while len(out) >= 2 and (out[-1][0] - out[-2][0]) * (q[1] - out[-2][1]) - (out[-1][1] - out[-2][1]) * (q[0] - out[-2][0]) <= 0:
+                out.pop()
+            out.append(q)
+        return out
+
+    lower, upper = chain(pts), chain(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _min_area_angle(hull: np.ndarray) -> float:
+    """Yaw in [0, pi/2) of the minimum-area rectangle around a convex polygon: one of its
+    sides lies along a hull edge, so only the edge directions are tried (ties: smallest yaw)."""
+    if len(hull) < 2:
+        return 0.0
+    edges = np.roll(hull, -1, axis=0) - hull
+    angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
+    c, s = np.cos(angles), np.sin(angles)
+    u = hull @ np.stack([c, s])          # (n, a): coordinate along each candidate x axis
+    v = hull @ np.stack([-s, c])
+    area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
+    best = np.flatnonzero(area <= area.min() * (1 + 1e-12) + 1e-18)[0]
+    return float(angles[best])
+
+
+def part_world_matrices(parts: list, dynamic_objects: list[str], object_matrices: np.ndarray) -> list[np.ndarray]:
+    """world_from_part (4, 4) of every part at one frame: the identity for static parts (their
+    vertices are in world coordinates), ``object_matrices[k]`` for ``dynamic_objects[k]``."""
+    index = {name: k for k, name in enumerate(dynamic_objects)}
+    eye = np.eye(4)
+    return [np.asarray(object_matrices[index[p.name]], float) if p.dynamic else eye for p in parts]
+
+
+# ---- 2D boxes --------------------------------------------------------------------------------
+
+def mask_box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
+    """Tight box (x0, y0, x1, y1) of a boolean (H, W) mask, pixel edges (x1, y1 exclusive:
+    the pixels x0 <= col < x1, y0 <= row < y1); None for an empty mask."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if len(rows) == 0:
+        return None
+    return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
+
+
+def mesh_outline(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(unique edges (E, 2), used vertex ids) of a triangle mesh, for :func:`amodal_box`."""
+    faces = np.asarray(faces, np.int64)
+    edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0)
+    return edges, np.unique(faces)
+
+
+def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray,
+               width: int, height: int, outline: tuple[np.ndarray, np.ndarray] | None = None,
+               near: float = NEAR) -> tuple[float, float, float, float] | None:
+    """Box (x0, y0, x1, y1) pixels of the projection of the triangles (world ``vertices``
+    (V, 3), ``faces`` (F, 3)) clipped to the view: the part of each triangle in front of
+    the camera (planar depth >= ``near`` metres, at least :data:`NEAR`; e.g. the camera's
+    clip start) and inside the image; there is no far limit. Exact: the clipped
+    polygons' corners are the triangle vertices inside the view, the crossings of triangle
+    edges with the view's five bounding planes, the crossings of the triangles' cuts by the
+    near plane with the image border, and the image corners a triangle covers.
+    None when no triangle reaches the view. Occlusion is ignored (amodal). ``outline``:
+    :func:`mesh_outline` of ``faces``, when the caller keeps it between calls."""
+    faces = np.asarray(faces, np.int64)
+    if len(faces) == 0:
+        return None
+    near = max(float(near), NEAR)
+    pc = world_to_camera(np.asarray(vertices, float), world_from_camera)
+    h = pc @ np.asarray(K, float).T  # (u z, v z, z): the view is 0 <= u <= W, 0 <= v <= H, z >= near
+    planes = np.stack([h[:, 0], width * h[:, 2] - h[:, 0], h[:, 1], height * h[:, 2] - h[:, 1], h[:, 2] - near], 1)
+    edges, used = outline if outline is not None else mesh_outline(faces)
+    found = [_inside(h[used], planes[used])]
+    ga, gb = planes[edges[:, 0]], planes[edges[:, 1]]
+    for k in range(5):
+        cross = np.flatnonzero((ga[:, k] < 0) != (gb[:, k] < 0))
+        if len(cross):
+            t = (ga[cross, k] / (ga[cross, k] - gb[cross, k]))[:, None]
+            hp = h[edges[cross, 0]] + t * (h[edges[cross, 1]] - h[edges[cross, 0]])
+            gp = ga[cross] + t * (gb[cross] - ga[cross])
+            gp[:, k] = 0.0
+            found.append(_inside(hp, gp))
+    found.append(_near_crossings(pc, faces, K, width, height, near))
+    found.append(_covered_corners(pc, faces, K, width, height, near))
+    xy = np.concatenate(found)
+    if len(xy) == 0:
+        return None
+    x0, y0 = np.clip(xy.min(axis=0), 0, [width, height])
+    x1, y1 = np.clip(xy.max(axis=0), 0, [width, height])
+    return float(x0), float(y0), float(x1), float(y1)
+
+
+def _inside(h: np.ndarray, g: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
+    """Image positions (n, 2) of the homogeneous points inside every plane of the view."""
+    scale = np.maximum(np.abs(h[:, 2:3]), 1.0)
+    keep = np.all(g >= -tolerance * scale, axis=1) & (h[:, 2] > 0)
+    return h[keep, :2] / h[keep, 2:3]
+
+
+def _near_crossings(pc: np.ndarray, faces: np.ndarray, K: np.ndarray, width: int, height: int, near: float) -> np.ndarray:
+    """Where the segments cutting triangles at the near plane (depth ``near``) cross the image
+    border (Liang-Barsky clipping of each projected segment to the image rectangle)."""
+    g = pc[:, 2] - near
+    ends = []
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        a, b = faces[:, i], faces[:, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = g[a] / (g[a] - g[b])
+        crossing = (g[a] < 0) != (g[b] < 0)
+        ends.append((crossing, pc[a] + np.where(crossing, t, 0.0)[:, None] * (pc[b] - pc[a])))
+    flags = np.stack([e[0] for e in ends], 1)
+    cut = np.flatnonzero(flags.sum(axis=1) == 2)
+    if len(cut) == 0:
+        return np.zeros((0, 2))
+    points = np.stack([e[1] for e in ends], 1)[cut]                      # (n, 3 edges, 3)
+    order = np.argsort(~flags[cut], axis=1, kind="stable")[:, :2]        # the two crossing edges
+    p0 = points[np.arange(len(cut)), order[:, 0]]
+    p1 = points[np.arange(len(cut)), order[:, 1]]
+    K = np.asarray(K, float)
+    q0 = (p0 @ K.T)[:, :2] / near
+    q1 = (p1 @ K.T)[:, :2] / near
+    d = q1 - q0
+    lo, hi = np.zeros(len(cut)), np.ones(len(cut))
+    for axis, limit in ((0, width), (1, height)):
+        for p, q in ((-d[:, axis], q0[:, axis]), (d[:, axis], limit - q0[:, axis])):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = q / p
+            lo = np.where(p < 0, np.maximum(lo, r), lo)
+            hi = np.where(p > 0, np.minimum(hi, r), hi)
+            lo = np.where((p == 0) & (q < 0), 2.0, lo)  # parallel to this border and outside it
+    keep = lo <= hi
+    segs = np.concatenate([q0[keep] + lo[keep, None] * d[keep], q0[keep] + hi[keep, None] * d[keep]])
+    return np.clip(segs, 0, [width, height])
+
+
+def _covered_corners(pc: np.ndarray, faces: np.ndarray, K: np.ndarray, width: int, height: int, near: float) -> np.ndarray:
+    """The image corners whose viewing ray meets a triangle in front of the camera."""
+    corners = np.array([[0.0, 0.0], [width, 0.0], [0.0, height], [width, height]])
+    kinv = np.linalg.inv(np.asarray(K, float))
+    rays = np.column_stack([corners, np.ones(4)]) @ kinv.T
+    a, b, c = pc[faces[:, 0]], pc[faces[:, 1]], pc[faces[:, 2]]
+    e1, e2 = b - a, c - a
+    out = []
+    for corner, d in zip(corners, rays):
+        # Moller-Trumbore from the camera centre (origin of the camera frame)
+        p = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        ok = np.abs(det) > 1e-15
+        inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+        s = -a
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        v = (q @ d) * inv
+        t = np.einsum("ij,ij->i", e2, q) * inv
+        if np.any(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t * d[2] >= near)):
+            out.append(corner)
+    return np.array(out).reshape(-1, 2)
