@@ -3,6 +3,7 @@
   python -m evaluation reconstruction --gt SEED_FOLDER|GT.ply --pred CLOUD [--tau 0.1] [--json out.json] [--rrd out.rrd] ...
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
   python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
+  python -m evaluation change --gt SEED_FOLDER --stages K-1 K --pred changes.npz|changes.ply [--tau 0.1] [--kind orbit] [--json out.json]
 
 Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot, --rrd)
 never land on an input of the run, inside a seed folder or ground_truth/ folder, or on a
@@ -55,6 +56,15 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="evaluate the frames after each query (first) or all but the query frame (strided)")
     k.add_argument("--resize-to", type=resolution, help="scale positions to WxH first (TAP-Vid uses 256x256)")
     k.add_argument("--json", type=Path, help="write the scores, parameters and versions here")
+    ch = sub.add_parser("change", help="score predicted changes between two stages of a timeline (docs/phases.md)")
+    ch.add_argument("--gt", type=Path, required=True, help="seed folder made with python -m generator --phases K")
+    ch.add_argument("--stages", type=int, nargs=2, required=True, metavar=("K-1", "K"), help="two consecutive stages")
+    ch.add_argument("--pred", type=Path, required=True, help="NPZ/PLY change cloud (xyz, change: 1 added, 2 removed) "
+                    "or NPZ with masks (T, H, W) bool")
+    ch.add_argument("--tau", type=positive_float("a positive number of metres"), default=0.1,
+                    help="change clouds: match distance in metres (default 0.1, strict <)")
+    ch.add_argument("--kind", help="change masks: the trajectory they are for (default: the only one)")
+    ch.add_argument("--json", type=Path, help="write the scores and every parameter here")
     return p.parse_args(argv)
 
 
@@ -139,6 +149,11 @@ def main(argv=None) -> int:
                 from datasets.viewer.match import write_match_recording
 
                 _write(args.rrd, write_match_recording, ctx, args.tau)
+        elif args.task == "change":
+            from .change import change_table, score_change
+
+            results = score_change(args.gt, args.stages[0], args.stages[1], args.pred, args.tau, args.kind)
+            print(change_table(results))
         elif args.task == "tracks":
             results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)
             print(tracks_table(results))
