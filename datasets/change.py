@@ -1,0 +1,132 @@
+"""Training data for change detection from timelines (``python -m generator --phases K``; no
+bpy, torch optional; docs/phases.md).
+
+    from datasets.change import ChangePairDataset, change_clouds
+    pairs = ChangePairDataset(["output/seed_000000"])           # every consecutive pair of stages
+    item = pairs[0]      # before, after (frame dicts, same pose), change (H, W) bool, stages, K, pose
+    clouds = change_clouds("output/seed_000000", 0, 1)          # both stages' GT clouds with change labels
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .scene import DatasetError, Sequence, check_index
+from .tasks import _Base
+
+
+class Timeline:
+    """A seed folder made with ``--phases K``: its stages' trajectories and its changes.h5."""
+
+    def __init__(self, path: str | Path):
+        from exporters.changes import FILE, read_changes
+        from exporters.hdf5 import DamagedFileError
+        from exporters.manifest import read_manifest
+
+        self.path = Path(path)
+        manifest = read_manifest(self.path)
+        if manifest is None or not (self.path / FILE).is_file():
+            raise DatasetError(f"{self.path}: not a complete timeline seed folder (manifest.json and {FILE}); "
+                               "point at output/seed_NNNNNN written by python -m generator --phases K")
+        self.seed = int(manifest["seed"])
+        self.trajectories = [str(k) for k in manifest["config"]["trajectories"]]
+        try:
+            self.changes = read_changes(self.path)
+        except (DamagedFileError, ValueError) as exc:
+            raise DatasetError(str(exc)) from None
+        self.stages = self.changes.stages
+        self.labels = json.loads((self.path / "phase_0" / "labels.json").read_text())
+        self._sequences: dict[tuple[int, str], Sequence] = {}
+
+    def sequence(self, stage: int, kind: str) -> Sequence:
+        """Stage ``stage``'s frames of trajectory ``kind`` (datasets.scene.Sequence)."""
+        check_index(stage, self.stages, "stage")
+        if kind not in self.trajectories:
+            raise KeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
+        if (stage, kind) not in self._sequences:
+            self._sequences[stage, kind] = Sequence(self.path / f"phase_{stage}" / kind, self.labels)
+        return self._sequences[stage, kind]
+
+
+def _resize_nearest(mask: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Nearest pixel centre (as the ids' resampling rule)."""
+    h, w = mask.shape
+    rows = np.minimum(((np.arange(height) + 0.5) * h / height).astype(int), h - 1)
+    cols = np.minimum(((np.arange(width) + 0.5) * w / width).astype(int), w - 1)
+    return mask[rows[:, None], cols[None, :]]
+
+
+class ChangePairDataset(_Base):
+    """Pairs of frames with the same pose at consecutive stages, and what changed between them.
+
+    Item: ``before`` and ``after`` (dicts of the frames' modalities, as FrameDataset's, K and
+    pose included; the poses are the same), ``change`` (H, W) bool (the pixel's visible
+    surface changed, changes.h5), ``stages`` (k-1, k), ``scene`` (seed), ``trajectory``,
+    ``index``. ``pairs``: the k of the pairs (k-1, k) to include (default: all);
+    ``transform`` is applied to ``before`` and ``after`` each, and ``change`` follows their
+    size (nearest pixel centre)."""
+
+    def __init__(self, paths, pairs: list[int] | None = None, trajectories: list[str] | None = None,
+                 transform: Callable | None = None, as_tensor: bool = False, keys: tuple[str, ...] | None = None):
+        super().__init__(transform, as_tensor)
+        paths = [paths] if isinstance(paths, (str, Path, Timeline)) else list(paths)
+        self.timelines = [p if isinstance(p, Timeline) else Timeline(p) for p in paths]
+        if not self.timelines:
+            raise DatasetError("no timelines given")
+        self.keys = keys
+        self.index: list[tuple[int, int, str, int]] = []
+        for s, tl in enumerate(self.timelines):
+            ks = range(1, tl.stages) if pairs is None else pairs
+            for k in ks:
+                if not (isinstance(k, (int, np.integer)) and 1 <= k < tl.stages):
+                    raise ValueError(f"pair {k!r}: {tl.path} has pairs 1 to {tl.stages - 1} (stage k-1 to stage k)")
+                for kind in trajectories or tl.trajectories:
+                    self.index += [(s, int(k), kind, i) for i in range(len(tl.sequence(k, kind)))]
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, i: int) -> dict:
+        s, k, kind, j = self.index[check_index(i, len(self), "ChangePairDataset item")]
+        tl = self.timelines[s]
+        before = tl.sequence(k - 1, kind).read(j, self.keys).as_dict()
+        after = tl.sequence(k, kind).read(j, self.keys).as_dict()
+        change = tl.changes.pair(k - 1, k).masks[kind][j]
+        if self.transform is not None:
+            before, after = self.transform(before), self.transform(after)
+            size = next((v.shape[:2] for v in before.values() if isinstance(v, np.ndarray) and v.ndim >= 2
+                         and v.shape[:2] != (3, 3) and v.shape[:2] != (4, 4)), change.shape)
+            if tuple(size) != change.shape:
+                change = _resize_nearest(change, *size)
+        sample = {"before": before, "after": after, "change": change, "stages": np.array([k - 1, k]),
+                  "K": after["K"], "pose": after["pose"], "scene": tl.seed, "trajectory": kind, "index": j}
+        from .tasks import _to_tensor
+
+        return _to_tensor(sample) if self.as_tensor else sample
+
+
+def change_clouds(path: str | Path | Timeline, before: int, after: int) -> dict:
+    """The two stages' ground-truth clouds with their change labels: ``before`` and ``after``
+    dicts with xyz (N, 3) float32 metres, label, instance (stage ids) and union_instance (ids
+    of changes.h5's instance table) (N,) int32, and ``removed`` (stage ``before``) /
+    ``added`` (stage ``after``) (N,) bool; ``status`` per union instance (exporters.changes.STATUS
+    codes, -1 absent) and ``transform`` (U, 4, 4) for moved ones; ``names`` the union table."""
+    from exporters.ply import read_ply
+
+    tl = path if isinstance(path, Timeline) else Timeline(path)
+    try:
+        pair = tl.changes.pair(before, after)
+    except ValueError as exc:
+        raise DatasetError(str(exc)) from None
+    out = {"status": pair.status, "transform": pair.transform, "names": tl.changes.names}
+    for key, stage, flag, values in (("before", before, "removed", pair.points_removed),
+                                     ("after", after, "added", pair.points_added)):
+        v = read_ply(tl.path / f"phase_{stage}" / "ground_truth" / "points.ply").vertex
+        table = tl.changes.stage_tables[stage]
+        out[key] = {"xyz": np.stack([v[c] for c in "xyz"], 1), "label": v["label"], "instance": v["instance"],
+                    "union_instance": table[v["instance"]], flag: values}
+    return out
