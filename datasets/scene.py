@@ -8,19 +8,17 @@ worker processes.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from exporters import FORMAT_VERSION
-from exporters.exr import read_frame_exr
-from exporters.frames import frame_names
-from exporters.hdf5 import H5_ERRORS, DamagedFileError, attribute, damaged, group, open_file, read, reason, text
+from exporters.frames import FrameReader, frame_names
+from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
 from exporters.manifest import read_manifest
+from exporters.tracks import TrackReader
 
 SUPPORTED_VERSIONS = (FORMAT_VERSION,)
 
@@ -57,43 +55,33 @@ def check_index(i, n: int, what: str) -> int:
 
 @dataclass
 class Frame:
-    """One rendered frame, exactly as stored. ``rgb`` (H, W, 3) float16 display sRGB in [0, 1]
-    (Blender's view transform applied; ``.astype(np.float32)`` for arithmetic); ``depth`` (H, W)
+    """One rendered frame, exactly as stored, keyed by modality name (exporters/modalities.py):
+    ``frame.depth`` or ``frame["depth"]``. ``rgb`` (H, W, 3) float32 display sRGB in [0, 1]
+    (the 8-bit PNG / 255); ``rgb_linear`` (H, W, 3) float16 scene-linear; ``depth`` (H, W)
     float32 planar metres (+inf: no surface); ``label``, ``instance`` (H, W) int32 (-1: none);
+    ``normal`` (H, W, 3) float32 world unit normals facing the camera (0: none); ``flow``,
+    ``backward_flow`` (H, W, 2) float32 pixels to the next / previous frame (NaN: none).
     ``K`` (3, 3); ``pose`` (4, 4) OpenCV world_from_camera; ``timestamp`` seconds."""
 
-    rgb: np.ndarray
-    depth: np.ndarray
-    label: np.ndarray
-    instance: np.ndarray
+    outputs: dict
     K: np.ndarray
     pose: np.ndarray
     timestamp: float
     index: int
     trajectory: str
 
+    def __getattr__(self, name: str):
+        outputs = self.__dict__.get("outputs")
+        if outputs is not None and name in outputs:
+            return outputs[name]
+        raise AttributeError(f"frame has no {name!r}" + (f" (modalities read: {', '.join(outputs)})" if outputs else ""))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.outputs[name]
+
     def as_dict(self) -> dict:
-        return dict(self.__dict__)
-
-
-class _H5:
-    """An HDF5 file opened once per process (h5py handles must not cross a fork)."""
-
-    def __init__(self, path: Path):
-        self.path, self._pid, self._file = path, None, None
-
-    def get(self) -> h5py.File:
-        if self._file is None or self._pid != os.getpid():
-            self._file = _checked(open_file, self.path)
-            self._pid = os.getpid()
-        return self._file
-
-    def read(self, key: str, sel=()) -> np.ndarray:
-        """``file[key][sel]``; a damaged dataset (checksum, missing) raises DatasetError."""
-        return _checked(lambda: read(self.get(), key, self.path, sel), path=self.path)
-
-    def __getstate__(self):
-        return {"path": self.path, "_pid": None, "_file": None}
+        return dict(self.outputs) | {"K": self.K, "pose": self.pose, "timestamp": self.timestamp,
+                                     "index": self.index, "trajectory": self.trajectory}
 
 
 class Sequence:
@@ -105,39 +93,18 @@ class Sequence:
         for name in ("tracks.h5", "trajectory.npz"):
             if not (folder / name).is_file():
                 raise DatasetError(f"{folder}: missing {name}; the seed folder is incomplete, regenerate it")
-        self._h5 = _H5(folder / "tracks.h5")
-        _checked(self._read_cameras, path=self._h5.path)
+        self.tracks = _checked(TrackReader, folder / "tracks.h5")  # the one reader of tracks.h5 (exporters/tracks.py)
+        t = self.tracks
+        self.K, self.width, self.height, self.poses, self.timestamps = t.K, t.width, t.height, t.poses, t.timestamps
+        self._frames = _checked(FrameReader, folder)
+        if (self._frames.width, self._frames.height) != (self.width, self.height):
+            raise DatasetError(f"{folder / 'frames.json'}: frames of {self._frames.width}x{self._frames.height} "
+                               f"pixels, cameras of {self.width}x{self.height}; regenerate this seed with python -m generator")
 
-    def _read_cameras(self) -> None:
-        h5 = self._h5
-        f = h5.get()
-        version = text(_checked(attribute, f, "format_version")) if "format_version" in f.attrs else None
-        if version not in SUPPORTED_VERSIONS:
-            raise DatasetError(f"{h5.path}: format_version {version!r}; this reader reads "
-                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
-        self.K = h5.read("cameras/K")
-        cams = _checked(group, f, "cameras", h5.path)
-        self.width, self.height = (int(_checked(attribute, cams, k, h5.path)) for k in ("width", "height"))
-        self.poses = h5.read("cameras/world_from_camera")
-        self.timestamps = h5.read("cameras/timestamps")
-        self.offsets = h5.read("visibility/offsets")
-        self._check(h5.path)
-
-    def _check(self, path: Path) -> None:
-        T = len(self.poses)
-        problems = [
-            (self.K.shape != (3, 3) or not np.isfinite(self.K).all() or self.K[0, 0] <= 0 or self.K[1, 1] <= 0,
-             "cameras/K is not a valid intrinsic matrix"),
-            (self.width <= 0 or self.height <= 0, "camera size"),
-            (self.poses.shape[1:] != (4, 4) or not np.isfinite(self.poses).all(), "cameras/world_from_camera"),
-            (self.timestamps.shape != (T,) or not np.isfinite(self.timestamps).all(), "cameras/timestamps"),
-            (self.offsets.shape != (T + 1,) or (T and (self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0))),
-             "visibility/offsets"),
-        ]
-        for bad, what in problems:
-            if bad:
-                raise DatasetError(f"{path}: damaged file ({what} is inconsistent); regenerate this seed with "
-                                   "python -m generator")
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        """Names of the per-frame modalities stored for this trajectory (frames.json)."""
+        return self._frames.modalities
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -148,67 +115,53 @@ class Sequence:
     def __getitem__(self, i):
         if isinstance(i, slice):
             return [self[j] for j in range(*i.indices(len(self)))]
+        return self.read(i)
+
+    def read(self, i: int, keys=None) -> Frame:
+        """Frame ``i`` (Python indexing) with the modalities ``keys`` (default: all stored)."""
         i = check_index(i, len(self), f"{self.kind} frame")
-        path = self.exr_path(i)
-        if not path.is_file():
-            raise DatasetError(f"{path}: missing frame; the seed folder is incomplete, regenerate it")
-        d = _checked(read_frame_exr, path)
-        missing = [k for k in ("rgb", "depth", "label", "instance") if k not in d]
-        shape = (self.height, self.width)
-        if missing or any(d[k].shape[:2] != shape for k in ("rgb", "depth", "label", "instance")):
-            raise DatasetError(f"{path}: damaged frame (" + (f"no {', '.join(missing)} channel" if missing else
-                               f"not {self.width}x{self.height} pixels") + "); regenerate this seed with python -m generator")
-        return Frame(d["rgb"], d["depth"], d["label"], d["instance"], self.K.copy(),
-                     self.poses[i].copy(), float(self.timestamps[i]), i, self.kind)
+        try:
+            outputs = _checked(self._frames.read, i, keys)
+        except KeyError as exc:
+            raise KeyError(exc.args[0]) from None
+        return Frame(outputs, self.K.copy(), self.poses[i].copy(), float(self.timestamps[i]), i, self.kind)
 
     def visible_tracks(self, t: int) -> dict:
         """Points visible at frame t (Python indexing: -1 is the last frame): ``ids`` (n,),
         ``xy`` (n, 2) pixels, ``depth`` (n,) metres."""
         t = check_index(t, len(self), f"{self.kind} frame")
-        a, b = int(self.offsets[t]), int(self.offsets[t + 1])
-        out = {k: self._h5.read(f"visibility/{name}", np.s_[a:b]) for k, name in
-               (("ids", "index"), ("xy", "xy"), ("depth", "depth"))}
-        if any(len(v) != b - a for v in out.values()) or (b > a and (out["ids"].min() < 0 or
-                                                                      out["ids"].max() >= len(self.points["label"]))):
-            raise DatasetError(f"{self._h5.path}: damaged file (visibility of frame {t} is inconsistent); "
-                               "regenerate this seed with python -m generator")
-        return out
+        return _checked(self.tracks.visible, t)
 
     def point_positions(self, t: int, ids: np.ndarray) -> np.ndarray:
         """World positions (n, 3) metres of points ``ids`` at frame t (Python indexing; dynamic
         ones moved)."""
-        from exporters.tracks import world_positions
-
         t = check_index(t, len(self), f"{self.kind} frame")
         ids = np.asarray(ids)
         n = len(self.points["label"])
         if ids.size and (ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n):
             raise IndexError(f"point ids must be integers in 0..{n - 1}")
-        return world_positions({"local": self.points["local"], "dynamic_object": self.points["dynamic_object"],
-                                "world_from_object": self.object_matrices}, t, ids)
+        return _checked(self.tracks.positions, t, ids)
 
     @cached_property
     def points(self) -> dict:
         """The tracked surface points: local (N, 3), label, instance, dynamic_object (N,)."""
-        return {k: self._h5.read(f"points/{k}") for k in ("local", "label", "instance", "dynamic_object")}
+        return _checked(lambda: self.tracks.points)
 
     @cached_property
     def object_matrices(self) -> np.ndarray:
         """(T, D, 4, 4) world_from_object of the moving objects."""
-        return self._h5.read("objects/world_from_object")
+        return _checked(lambda: self.tracks.object_matrices)
 
     @cached_property
     def coverage(self) -> np.ndarray:
         """(T,) share of surface points observed at least once after each frame."""
-        return self._h5.read("coverage")
+        return _checked(lambda: self.tracks.coverage)
 
     @cached_property
     def tapvid(self) -> dict:
         """TAP-Vid query subset: query_points (Q, 3) (t, y, x), tracks (Q, T, 2) (x, y),
         occluded (Q, T), tracks_3d (Q, T, 3), point_ids (Q,) (checked for consistency)."""
-        from exporters.tracks import read_tapvid
-
-        return _checked(lambda: read_tapvid(self._h5.get(), self._h5.path), path=self._h5.path)
+        return _checked(self.tracks.tapvid)
 
 
 class Scene:

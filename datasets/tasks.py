@@ -56,13 +56,15 @@ class _Base:
 
 
 class FrameDataset(_Base):
-    """Single frames (depth estimation, segmentation, novel-view synthesis): each item is a
-    dict with rgb, depth, label, instance, K, pose, timestamp, scene (seed), trajectory, index.
+    """Single frames (depth, normals, flow, segmentation, novel-view synthesis): each item is a
+    dict with the frame's modalities (rgb, rgb_linear, depth, label, instance, normal, flow,
+    backward_flow: those stored), K, pose, timestamp, scene (seed), trajectory, index.
 
-    ``trajectories``: kinds to include (default: all); ``keys``: image arrays to return."""
+    ``trajectories``: kinds to include (default: all); ``keys``: modalities to return
+    (default: every stored one; exporters/modalities.py)."""
 
     def __init__(self, paths, trajectories: list[str] | None = None, transform: Callable | None = None,
-                 as_tensor: bool = False, keys: tuple[str, ...] = ("rgb", "depth", "label", "instance")):
+                 as_tensor: bool = False, keys: tuple[str, ...] | None = None):
         super().__init__(transform, as_tensor)
         self.scenes = _scenes(paths)
         self.keys = keys
@@ -77,8 +79,8 @@ class FrameDataset(_Base):
     def __getitem__(self, i: int) -> dict:
         s, kind, j = self.index[check_index(i, len(self), "FrameDataset item")]
         scene = self.scenes[s]
-        f = scene[kind][j]
-        sample = {k: getattr(f, k) for k in self.keys}
+        f = scene[kind].read(j, self.keys)
+        sample = dict(f.outputs)
         sample |= {"K": f.K, "pose": f.pose, "timestamp": f.timestamp, "scene": scene.seed, "trajectory": kind,
                    "index": j}
         return self._finish(sample)
@@ -86,14 +88,17 @@ class FrameDataset(_Base):
 
 class ClipDataset(_Base):
     """Clips of ``length`` consecutive frames (``stride`` apart) with their point tracks
-    (tracking, optical / scene flow). Each item: ``frames`` (list of frame dicts), ``tracks``:
+    (tracking, optical / scene flow). Each item: ``frames`` (list of frame dicts with the
+    modalities ``keys``, default all stored, and K, pose, timestamp), ``tracks``:
     ``ids`` (n,) of the points visible in the first frame, ``xy`` (length, n, 2) their pixel
     positions in every frame (projected even when hidden), ``visible`` (length, n) bool,
     ``depth`` (length, n) planar metres, ``xyz`` (length, n, 3) world positions."""
 
     def __init__(self, paths, length: int = 2, stride: int = 1, trajectories: list[str] | None = None,
-                 transform: Callable | None = None, as_tensor: bool = False, max_points: int | None = None):
+                 transform: Callable | None = None, as_tensor: bool = False, max_points: int | None = None,
+                 keys: tuple[str, ...] | None = None):
         super().__init__(transform, as_tensor)
+        self.keys = keys
         if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1 for v in (length, stride)):
             raise ValueError(f"length and stride must be integers >= 1, got {length!r}, {stride!r}")
         _check_count("max_points", max_points)
@@ -113,7 +118,7 @@ class ClipDataset(_Base):
         s, kind, start = self.index[check_index(i, len(self), "ClipDataset item")]
         seq: Sequence = self.scenes[s][kind]
         times = [start + k * self.stride for k in range(self.length)]
-        frames = [seq[t] for t in times]
+        frames = [seq.read(t, self.keys) for t in times]
         ids = seq.visible_tracks(times[0])["ids"]
         if self.max_points is not None and len(ids) > self.max_points:
             ids = np.sort(np.random.default_rng([s, start]).choice(ids, self.max_points, replace=False))
@@ -125,8 +130,7 @@ class ClipDataset(_Base):
             xyz[k] = seq.point_positions(t, ids)
             xy[k], depth[k] = project(xyz[k], seq.poses[t], seq.K)
             visible[k] = np.isin(ids, seq.visible_tracks(t)["ids"])
-        sample = {"frames": [{"rgb": f.rgb, "depth": f.depth, "label": f.label, "instance": f.instance,
-                              "K": f.K, "pose": f.pose, "timestamp": f.timestamp} for f in frames],
+        sample = {"frames": [dict(f.outputs) | {"K": f.K, "pose": f.pose, "timestamp": f.timestamp} for f in frames],
                   "tracks": {"ids": ids, "xy": xy, "visible": visible, "depth": depth, "xyz": xyz},
                   "scene": self.scenes[s].seed, "trajectory": kind, "index": start}
         if self.transform is not None:

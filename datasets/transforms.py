@@ -1,11 +1,17 @@
 """Optional transforms of training samples that keep the geometry consistent.
 
-A sample is a dict with any of ``rgb`` (H, W, 3), ``depth``, ``label``, ``instance`` (H, W),
-``K`` (3, 3), and ``tracks`` (a dict with ``xy`` (..., 2) pixel positions). Pixel
-convention: the top-left pixel's centre is (0.5, 0.5), so a crop shifts positions by the
-crop's origin and a resize scales them by the size ratio, exactly; ``K`` changes the same way.
-Depth, labels and instances are resampled by nearest neighbour (values are never mixed),
-RGB by area averaging (PIL's box filter) when shrinking, bilinear when enlarging.
+A sample is a dict with per-frame modalities by name (``rgb`` (H, W, 3), ``depth``,
+``label``, ``instance`` (H, W), ``normal`` (H, W, 3), ``flow`` (H, W, 2), ... : any entry of
+``exporters.modalities.MODALITIES``), ``K`` (3, 3), and ``tracks`` (a dict with ``xy``
+(..., 2) pixel positions). Pixel convention: the top-left pixel's centre is (0.5, 0.5), so a
+crop shifts positions by the crop's origin and a resize scales them by the size ratio,
+exactly; ``K`` changes the same way. Each modality is resampled by the rule its entry
+declares (``resample``): ids by nearest neighbour (never blended); colour by area averaging
+(PIL's box filter) when shrinking, bilinear when enlarging; depth, normals and flow
+bilinearly at the new pixel centres where the four source pixels lie on one continuous
+surface, by nearest neighbour across depth edges and next to missing values; normals are
+renormalised; flow vectors are scaled by the resize ratio of their axis (a crop leaves them
+unchanged).
 """
 
 from __future__ import annotations
@@ -13,7 +19,13 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
-_IMAGE_KEYS = ("rgb", "depth", "label", "instance")
+from exporters.modalities import MODALITIES
+
+EDGE_RATIO = 1.05  # four source depths spanning more than 5% make a depth edge: nearest there
+
+
+def _image_keys(sample: dict) -> list[str]:
+    return [k for k in sample if k in MODALITIES and isinstance(sample[k], np.ndarray) and sample[k].ndim >= 2]
 
 
 def _tracks(sample: dict, fn) -> None:
@@ -32,13 +44,12 @@ class Crop:
 
     def __call__(self, sample: dict) -> dict:
         out = dict(sample)
-        for key in _IMAGE_KEYS:
-            if key in out:
-                img = out[key]
-                if self.y0 + self.height > img.shape[0] or self.x0 + self.width > img.shape[1]:
-                    raise ValueError(f"crop window {(self.x0, self.y0, self.width, self.height)} exceeds the "
-                                     f"{img.shape[1]}x{img.shape[0]} image")
-                out[key] = img[self.y0:self.y0 + self.height, self.x0:self.x0 + self.width]
+        for key in _image_keys(out):
+            img = out[key]
+            if self.y0 + self.height > img.shape[0] or self.x0 + self.width > img.shape[1]:
+                raise ValueError(f"crop window {(self.x0, self.y0, self.width, self.height)} exceeds the "
+                                 f"{img.shape[1]}x{img.shape[0]} image")
+            out[key] = img[self.y0:self.y0 + self.height, self.x0:self.x0 + self.width]
         if "K" in out:
             K = np.array(out["K"], np.float64)
             K[0, 2] -= self.x0
@@ -46,6 +57,51 @@ class Crop:
             out["K"] = K
         _tracks(out, lambda xy: xy - [self.x0, self.y0])
         return out
+
+
+class _Taps:
+    """Bilinear taps of the new pixel centres in the source image: rows r0, r1 = r0 + 1
+    (clamped) with weights, columns likewise, and the nearest source pixel."""
+
+    def __init__(self, w: int, h: int, width: int, height: int):
+        def axis(n_src, n_dst):
+            x = (np.arange(n_dst) + 0.5) * n_src / n_dst - 0.5  # new centre, in source pixel-centre units
+            lo = np.clip(np.floor(x).astype(np.int64), 0, n_src - 1)
+            hi = np.clip(lo + 1, 0, n_src - 1)
+            t = np.clip(x - np.floor(x), 0, 1)
+            t = np.where(x < 0, 0.0, np.where(x > n_src - 1, 1.0, t))
+            near = np.minimum(((np.arange(n_dst) + 0.5) * n_src / n_dst).astype(np.int64), n_src - 1)
+            return lo, hi, t, near
+
+        self.c0, self.c1, self.tx, self.cn = axis(w, width)
+        self.r0, self.r1, self.ty, self.rn = axis(h, height)
+
+    def nearest(self, img: np.ndarray) -> np.ndarray:
+        return img[self.rn[:, None], self.cn[None, :]]
+
+    def corners(self, img: np.ndarray):
+        r0, r1, c0, c1 = self.r0[:, None], self.r1[:, None], self.c0[None, :], self.c1[None, :]
+        return img[r0, c0], img[r0, c1], img[r1, c0], img[r1, c1]
+
+    def bilinear(self, img: np.ndarray, smooth: np.ndarray) -> np.ndarray:
+        """Bilinear where ``smooth`` (H', W') and all four taps are finite, else nearest."""
+        a, b, c, d = (v.astype(np.float64) for v in self.corners(img))
+        tx, ty = self.tx[None, :], self.ty[:, None]
+        if img.ndim == 3:
+            tx, ty = tx[..., None], ty[..., None]
+        value = (a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty
+        finite = np.isfinite(np.stack([a, b, c, d]))
+        ok = smooth & (finite.all(axis=(0, -1)) if img.ndim == 3 else finite.all(axis=0))
+        near = self.nearest(img).astype(np.float64)
+        return np.where(ok[..., None] if img.ndim == 3 else ok, value, near)
+
+    def continuous(self, depth: np.ndarray | None) -> np.ndarray:
+        """(H', W') bool: the four source depths are finite and within EDGE_RATIO of each other."""
+        if depth is None:
+            return np.ones((len(self.r0), len(self.c0)), bool)
+        taps = np.stack([v.astype(np.float64) for v in self.corners(depth)])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.isfinite(taps).all(0) & (taps.min(0) > 0) & (taps.max(0) <= EDGE_RATIO * taps.min(0))
 
 
 class Resize:
@@ -58,22 +114,32 @@ class Resize:
 
     def __call__(self, sample: dict) -> dict:
         out = dict(sample)
-        ref = next((out[k] for k in _IMAGE_KEYS if k in out), None)
-        if ref is None:
+        keys = _image_keys(out)
+        if not keys:
             return out
-        h, w = ref.shape[:2]
+        h, w = out[keys[0]].shape[:2]
         sx, sy = self.width / w, self.height / h
-        # nearest neighbour: output pixel centre (j + 0.5) / sx maps to source column floor(.)
-        cols = np.minimum(((np.arange(self.width) + 0.5) / sx).astype(np.int64), w - 1)
-        rows = np.minimum(((np.arange(self.height) + 0.5) / sy).astype(np.int64), h - 1)
-        for key in ("depth", "label", "instance"):
-            if key in out:
-                out[key] = out[key][rows[:, None], cols[None, :]]
-        if "rgb" in out:
-            rgb = np.asarray(out["rgb"], np.float32)
-            method = Image.BOX if sx <= 1 and sy <= 1 else Image.BILINEAR
-            out["rgb"] = np.stack([np.asarray(Image.fromarray(rgb[..., c], mode="F").resize((self.width, self.height), method))
-                                   for c in range(rgb.shape[2])], axis=-1)
+        taps = _Taps(w, h, self.width, self.height)
+        smooth = taps.continuous(out.get("depth"))
+        for key in keys:
+            rule, img = MODALITIES[key].resample, out[key]
+            if rule == "nearest":
+                out[key] = taps.nearest(img)
+            elif rule == "area":
+                rgb = np.asarray(img, np.float32)
+                method = Image.BOX if sx <= 1 and sy <= 1 else Image.BILINEAR
+                chans = [rgb] if rgb.ndim == 2 else [rgb[..., c] for c in range(rgb.shape[2])]
+                res = [np.asarray(Image.fromarray(np.ascontiguousarray(c), mode="F").resize((self.width, self.height), method))
+                       for c in chans]
+                out[key] = (res[0] if rgb.ndim == 2 else np.stack(res, axis=-1)).astype(img.dtype)
+            else:
+                v = taps.bilinear(img, smooth)
+                if rule == "unit_vector":
+                    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+                    v = np.where(norm > 0, v / np.where(norm > 0, norm, 1), 0.0)
+                elif rule == "flow":
+                    v = v * [sx, sy]
+                out[key] = v.astype(img.dtype)
         if "K" in out:
             out["K"] = np.diag([sx, sy, 1.0]) @ np.asarray(out["K"], np.float64)
         _tracks(out, lambda xy: xy * [sx, sy])
@@ -92,7 +158,8 @@ def linear_to_srgb(rgb: np.ndarray) -> np.ndarray:
 
 
 class ToLinear:
-    """RGB from display sRGB to linear light (the frames hold display-referred sRGB)."""
+    """``rgb`` from display sRGB to linear light by the sRGB curve (``rgb_linear`` holds the
+    renderer's own scene-linear colour)."""
 
     def __call__(self, sample: dict) -> dict:
         return dict(sample) | ({"rgb": srgb_to_linear(sample["rgb"])} if "rgb" in sample else {})

@@ -1,14 +1,14 @@
 """Per-frame EXR files: every EXR-stored modality of one frame (``exporters/modalities.py``).
 
-Layout (docs/format.md): a multi-part scanline OpenEXR file.
+Layout (docs/format.md): a multi-part scanline OpenEXR file, one part per component type
+(readers that take one type per part, like imageio's FreeImage, or only the first part,
+like OpenCV, get the colour from part 0):
 
-- part 0 ``frame``: colour and float modalities (``R``, ``G``, ``B`` HALF scene-linear RGB with
-  the ``chromaticities`` attribute, ``Z`` FLOAT planar depth, ``normal.X/Y/Z``, ``flow.X/Y``,
-  ``backward_flow.X/Y`` FLOAT...). Readers that open one part (imageio's FreeImage, OpenCV)
-  get the colour from it.
-- part 1 ``ids``: UINT ids (``label``, ``instance``; 4294967295 = -1 = none), exact.
+- ``colour``: HALF ``R``, ``G``, ``B`` scene-linear RGB, with the ``chromaticities`` attribute;
+- ``data``: FLOAT ``Z`` planar depth, ``normal.X/Y/Z``, ``flow.X/Y``, ``backward_flow.X/Y``...;
+- ``ids``: UINT ``label``, ``instance`` (4294967295 = -1 = none), exact.
 
-A file with only one kind of channel has one part. Header attributes ``buildee/*`` state the
+Parts with nothing to hold are left out. Header attributes ``buildee/*`` state the
 conventions; ``buildee/modalities`` maps each modality to its channels. The reader returns
 exactly the arrays that were written, keyed by modality name.
 """
@@ -22,7 +22,7 @@ import numpy as np
 import OpenEXR
 
 from .hdf5 import REMEDY, DamagedFileError, damaged
-from .modalities import MODALITIES
+from .modalities import MODALITIES, PART_OF_TYPE
 
 COMPRESSIONS = {
     "none": OpenEXR.NO_COMPRESSION,
@@ -37,13 +37,13 @@ ATTRIBUTES = {
     "buildee/format": "frame-exr-2",
     "buildee/pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
 }
-PART_NAMES = ("frame", "ids")
+PART_NAMES = tuple(PART_OF_TYPE.values())  # colour (HALF), data (FLOAT), ids (UINT)
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",
                 attributes: dict | None = None) -> Path:
-    """Write ``outputs`` (modality name -> array, all of one (H, W)) to an EXR file: UINT ids
-    in part ``ids``, everything else in part ``frame`` (docs/format.md)."""
+    """Write ``outputs`` (modality name -> array, all of one (H, W)) to an EXR file, one part
+    per component type: ``colour`` (HALF), ``data`` (FLOAT), ``ids`` (UINT) (docs/format.md)."""
     if compression not in COMPRESSIONS:
         raise ValueError(f"unknown EXR compression {compression!r}; choose one of {', '.join(COMPRESSIONS)}")
     unknown = [n for n in outputs if n not in MODALITIES]
@@ -53,7 +53,7 @@ def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: s
     layout: dict[str, dict[str, list[str]]] = {}
     for name, array in outputs.items():
         m = MODALITIES[name]
-        part = "ids" if m.is_ids else "frame"
+        part = PART_OF_TYPE[m.exr_type]
         channels = parts.setdefault(part, {})
         clash = [c for c in m.channels if c in channels]
         if clash:

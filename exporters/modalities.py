@@ -28,6 +28,7 @@ RESAMPLE = {
     "flow": "as bilinear, then each component scaled by the resize ratio of its axis",
 }
 EXR_TYPES = {"HALF": np.float16, "FLOAT": np.float32, "UINT": np.uint32}
+PART_OF_TYPE = {"HALF": "colour", "FLOAT": "data", "UINT": "ids"}  # EXR parts, in file order
 
 
 @dataclass(frozen=True)
@@ -39,9 +40,9 @@ class Modality:
     source: ``"render"`` (a Blender pass) or ``"geometry"`` (``compute`` from the geometry).
     channels: EXR channel names; one channel gives (H, W), several (H, W, C).
     exr_type: ``HALF``, ``FLOAT`` or ``UINT`` (ids: int32 with -1 stored as uint32).
-    part: the EXR part holding it (``"frame"``: colour and floats; ``"ids"``: UINT ids, so
-        that readers of one component type open the first part), or ``None`` if it is not
-        stored in the EXR (``pngs`` only).
+    part: the EXR part holding it, one per component type so that readers that want one type
+        per part (imageio's FreeImage) open the first: ``"colour"`` (HALF), ``"data"``
+        (FLOAT), ``"ids"`` (UINT); or ``None`` if it is not stored in the EXR (``pngs`` only).
     pngs: extra image files per frame: ``(prefix, kind)`` with kind ``"rgb8"`` (8-bit sRGB)
         or ``"id16"`` (16-bit, id + 1, 0 = none), written as ``<prefix>_NNNNNN.png``.
     resample: key of :data:`RESAMPLE`.
@@ -72,8 +73,9 @@ class Modality:
             raise ValueError(f"modality {self.name!r}: exr_type must be one of {', '.join(EXR_TYPES)}")
         if self.resample not in RESAMPLE:
             raise ValueError(f"modality {self.name!r}: resample must be one of {', '.join(RESAMPLE)}")
-        if self.part not in (None, "frame", "ids") or (self.part == "ids") != (self.exr_type == "UINT"):
-            raise ValueError(f"modality {self.name!r}: UINT ids go to part 'ids', other types to 'frame'")
+        if self.part not in (None, PART_OF_TYPE[self.exr_type]):
+            raise ValueError(f"modality {self.name!r}: {self.exr_type} channels go to EXR part "
+                             f"{PART_OF_TYPE[self.exr_type]!r} (or None: not in the EXR)")
         if not self.dtype:
             object.__setattr__(self, "dtype", "int32" if self.exr_type == "UINT" else np.dtype(EXR_TYPES[self.exr_type]).name)
 
@@ -145,10 +147,10 @@ register_modality(Modality(
     "render", ("R", "G", "B"), "HALF", None, "area", preview="rgb", pngs=(("rgb", "rgb8"),), dtype="float32"))
 register_modality(Modality(
     "rgb_linear", "scene-linear RGB (Blender's working space, Rec.709 primaries, D65), HDR",
-    "render", ("R", "G", "B"), "HALF", "frame", "area"))
+    "render", ("R", "G", "B"), "HALF", "colour", "area"))
 register_modality(Modality(
     "depth", "planar depth (camera z) in metres at the pixel centre, +inf = no surface",
-    "render", ("Z",), "FLOAT", "frame", "bilinear", preview="depth"))
+    "render", ("Z",), "FLOAT", "data", "bilinear", preview="depth"))
 register_modality(Modality(
     "label", "semantic label id at the pixel centre (index into labels.json), -1 = unlabelled",
     "render", ("label",), "UINT", "ids", "nearest", preview="labels", pngs=(("label", "id16"),)))
@@ -157,16 +159,16 @@ register_modality(Modality(
     "render", ("instance",), "UINT", "ids", "nearest", preview="ids", pngs=(("instance", "id16"),)))
 register_modality(Modality(
     "normal", "unit surface normal at the pixel centre, world frame, facing the camera; 0 = no surface",
-    "geometry", ("normal.X", "normal.Y", "normal.Z"), "FLOAT", "frame", "unit_vector", preview="normal",
+    "geometry", ("normal.X", "normal.Y", "normal.Z"), "FLOAT", "data", "unit_vector", preview="normal",
     compute=lambda g: g.world_normals()))
 register_modality(Modality(
     "flow", "optical flow to the next frame in pixels (x, y): where the surface point at the pixel centre, "
     "moving rigidly with its object, projects in the next frame, minus the pixel centre; NaN = no surface, "
     "no next frame, or behind the next camera",
-    "geometry", ("flow.X", "flow.Y"), "FLOAT", "frame", "flow", preview="flow",
+    "geometry", ("flow.X", "flow.Y"), "FLOAT", "data", "flow", preview="flow",
     compute=lambda g: g.flow_to(g.index + 1)))
 register_modality(Modality(
     "backward_flow", "optical flow to the previous frame in pixels (x, y), as flow; NaN = no surface, "
     "no previous frame, or behind the previous camera",
-    "geometry", ("backward_flow.X", "backward_flow.Y"), "FLOAT", "frame", "flow", preview="flow",
+    "geometry", ("backward_flow.X", "backward_flow.Y"), "FLOAT", "data", "flow", preview="flow",
     compute=lambda g: g.flow_to(g.index - 1)))

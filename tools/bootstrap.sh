@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up everything the project needs on a fresh machine, idempotently:
-#   1. Debian libraries: libusb-1.0-0 (open3d), libegl1/libgl1 (optional EEVEE/Workbench).
+#   1. Debian libraries: libusb-1.0-0 (open3d), libegl1/libgl1 (optional EEVEE/Workbench), libfreeimage3
+#      (the tests open frame EXRs with imageio's FreeImage plugin).
 #   2. A Python 3.13 virtual environment in .venv with the project installed (editable) and
 #      its pinned dependencies. Reinstalls only when pyproject.toml changed.
 # Usage: bash tools/bootstrap.sh        (then use .venv/bin/python)
@@ -10,7 +11,7 @@ cd "$(dirname "$0")/.."
 log() { printf '[bootstrap] %s\n' "$*" >&2; }
 
 # --- Debian packages ---------------------------------------------------------------
-debs=(libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri)
+debs=(libusb-1.0-0 libegl1 libegl-mesa0 libgl1-mesa-dri libfreeimage3)
 missing=()
 for pkg in "${debs[@]}"; do
   dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
