@@ -55,6 +55,8 @@ class SceneGeometry:
         self._dynamic = None
         self._dynamic_closed = None
         self._dynamic_dirty = True
+        # visibility.PointBlocks of the last point set tested against this scene (a cache)
+        self.point_blocks = None
         self.local_bounds = np.array(
             [
                 [p.vertices.min(axis=0), p.vertices.max(axis=0)] if len(p.vertices) else [[np.inf] * 3, [-np.inf] * 3]
@@ -114,15 +116,18 @@ class SceneGeometry:
         if n == 0:
             return np.zeros(0, dtype=bool)
         delta = targets - origin
-        dist = np.linalg.norm(delta, axis=1)
+        dist = np.sqrt(np.einsum("ij,ij->i", delta, delta))
         keep = np.clip(1.0 - np.divide(stop_short, dist, out=np.zeros(n), where=dist > 0), 0.0, 1.0)
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origin
-        rays[:, 3:] = delta * keep[:, None]
-        blocked = np.zeros(n, dtype=bool)
+        np.multiply(delta, keep[:, None], out=rays[:, 3:], casting="same_kind")
+        blocked = None
         t_rays = _tensor(rays)
         for scene in self._scenes():
-            blocked |= scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().astype(bool)
+            hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().astype(bool, copy=True)
+            blocked = hit if blocked is None else blocked | hit
+        if blocked is None:
+            return np.zeros(n, dtype=bool)
         return blocked & (keep > 0)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
