@@ -1,17 +1,10 @@
-"""Run seeds in worker processes, one writer per seed: each seed is locked, checked against
-what the output folder holds (generation.folders.decide), written into a marked partial
-folder by its worker and committed atomically. bpy-free (workers import it)."""
+"""Run seeds, one writer per seed: each seed is locked and checked against what the output
+folder holds (folders.decide) here, then computed by an executor (executors/: local worker
+processes or Ray tasks; both run executors.seed.produce_seed: a marked partial folder, a
+fresh worker process, the atomic commit), whose events feed the progress bars. bpy-free."""
 
 from __future__ import annotations
 
-import json
-import os
-import shutil
-import signal
-import subprocess
-import sys
-import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +12,7 @@ from tqdm import tqdm
 
 from . import folders
 from .config import RunConfig
+from .executors import Executor, Outcome, SeedJob
 
 # exit codes of python -m generator (docs/guarantees.md); the most severe applies
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_LEFT_ALONE, EXIT_BUSY = 0, 1, 2, 3, 4
@@ -33,6 +27,7 @@ class SeedResult:
     message: str = ""
     summary: dict = field(default_factory=dict)
     seconds: float = 0.0
+    attempts: int = 1  # attempts at computing it (more than 1: its worker was lost and the executor retried)
 
 
 @dataclass(frozen=True)
@@ -51,80 +46,6 @@ class Options:
 def exit_code(results: list[SeedResult]) -> int:
     codes = {_EXIT_OF[r.status] for r in results}
     return next((c for c in (EXIT_FAILED, EXIT_LEFT_ALONE, EXIT_BUSY) if c in codes), EXIT_OK)
-
-
-class _Worker:
-    """One seed's worker process; it shares the seed's lock descriptor with the runner."""
-
-    def __init__(self, seed: int, out: Path, cfg: RunConfig, position: int, lock: folders.SeedLock,
-                 replace: bool, bar_lock):
-        self.seed, self.out, self.cfg, self.lock, self.replace, self.bar_lock = seed, out, cfg, lock, replace, bar_lock
-        self.folder, self.note = folders.start_partial(out, seed)
-        self.position = position
-        env = {k: v for k, v in os.environ.items() if k != "OCIO"}
-        self.start_time = time.perf_counter()
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "generator.batch.worker", json.dumps(cfg.to_dict()), str(seed), str(self.folder)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True,
-            cwd=Path(__file__).resolve().parents[2], pass_fds=(lock.fd,))
-        self.bar = tqdm(total=cfg.frames * len(cfg.trajectories), desc=f"seed {seed} frames", unit="frame",
-                        position=position, leave=False, dynamic_ncols=True)
-        self.events: list[dict] = []
-        self.stderr = ""
-        self.readers = [threading.Thread(target=self._read, daemon=True), threading.Thread(target=self._read_err, daemon=True)]
-        for t in self.readers:
-            t.start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            if line.startswith("@@"):
-                event = json.loads(line[2:])
-                self.events.append(event)
-                if event["event"] == "frame":
-                    with self.bar_lock:
-                        self.bar.update(1)
-
-    def _read_err(self):
-        self.stderr = self.proc.stderr.read()
-
-    def finish(self) -> SeedResult:
-        """Commit the seed if its worker succeeded, then release its lock."""
-        for t in self.readers:
-            t.join()
-        self.bar.close()
-        seconds = time.perf_counter() - self.start_time
-        done = [e for e in self.events if e["event"] == "done"]
-        try:
-            if self.proc.returncode == 0 and done:
-                try:
-                    problem = folders.commit(self.out, self.seed, self.cfg.to_dict(), self.replace)
-                except OSError as exc:
-                    problem = f"{exc.filename or self.folder}: {exc.strerror}"
-                if not problem:
-                    return SeedResult(self.seed, "done", "", done[0]["summary"], seconds)
-                return SeedResult(self.seed, "failed", f"not committed: {problem}", {}, seconds)
-            return SeedResult(self.seed, "failed", self._cause(), {}, seconds)
-        finally:
-            self.lock.release()
-
-    def _cause(self) -> str:
-        errors = [e["message"] for e in self.events if e["event"] == "error"]
-        code = self.proc.returncode
-        ended = f"killed by {signal.Signals(-code).name}" + (" (out of memory?)" if code == -signal.SIGKILL else "") \
-            if code < 0 else f"exit code {code}"
-        cause = errors[0] if errors else (self.stderr.strip().splitlines() or [ended])[-1]
-        log = self.folder / "error.log"
-        return cause + (f" (details: {log})" if log.exists() else "")
-
-    def abandon(self):
-        """Interrupted: kill the worker, remove its partial folder (made by this run), unlock."""
-        try:
-            os.killpg(self.proc.pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
-        self.proc.wait()
-        shutil.rmtree(self.folder, ignore_errors=True)
-        self.lock.release()
 
 
 def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders.SeedLock | None, SeedResult | None, folders.Decision | None]:
@@ -161,12 +82,19 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
     return None, SeedResult(seed, "skipped" if d.action == "skip" else d.action, d.message, d.summary or {}), None
 
 
-def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> list[SeedResult]:
-    """Run ``seeds`` with up to ``opts.workers`` processes at once; returns their results."""
-    bar_lock = threading.Lock()
+def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, executor: Executor | None = None) -> list[SeedResult]:
+    """Run ``seeds`` on ``executor`` (default: the local one with ``opts.workers`` processes);
+    returns their results. Each seed is locked and decided here, computed by the executor,
+    and unlocked once its result is back."""
+    if executor is None:
+        from .executors.local import LocalExecutor
+
+        executor = LocalExecutor(opts.workers)
     results: list[SeedResult] = []
     pending = list(seeds)
-    running: list[_Worker] = []
+    locks: dict[int, folders.SeedLock] = {}
+    bars: dict[int, tqdm] = {}
+    rows: dict[int, int] = {}  # the screen row of each seed's bar (0 is the overall bar)
     announced: set[int] = set()
     overall = tqdm(total=len(seeds), desc="seeds", unit="seed", position=0, dynamic_ncols=True)
 
@@ -175,10 +103,37 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> lis
         overall.update(1)
         tqdm.write(one_line(r))
 
+    def bar(seed: int) -> tqdm:
+        if seed not in bars:
+            rows[seed] = min(p for p in range(1, len(bars) + 2) if p not in rows.values())
+            bars[seed] = tqdm(total=cfg.frames * len(cfg.trajectories), desc=f"seed {seed} frames", unit="frame",
+                              position=rows[seed], leave=False, dynamic_ncols=True)
+        return bars[seed]
+
+    def handle(e: dict):
+        seed, kind = e["seed"], e["event"]
+        if kind == "result":
+            locks.pop(seed).release()
+            if seed in bars:
+                bars.pop(seed).close()
+                rows.pop(seed)
+            report(_result(e["outcome"], e["attempts"]))
+        elif kind == "note":
+            tqdm.write(f"seed {seed}: {e['message']}")
+        elif kind == "retry":
+            tqdm.write(f"seed {seed}: attempt {e['attempt'] - 1} lost ({e['cause']}); retrying: attempt "
+                       f"{e['attempt']} of {e['attempts']}, its partial folder removed first")
+            bar(seed).reset()
+        elif kind == "start":
+            bar(seed).total = e["frames"]
+            bar(seed).refresh()
+        elif kind == "frame":
+            bar(seed).update(1)
+
     try:
-        while pending or running:
+        while pending or locks:
             waiting = []
-            while pending and len(running) < opts.workers:
+            while pending and executor.room() > 0:
                 seed = pending.pop(0)
                 lock, settled, decision = _claim(out, seed, cfg, opts)
                 if settled:
@@ -188,35 +143,31 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options) -> lis
                     if seed not in announced:
                         announced.add(seed)
                         tqdm.write(f"seed {seed}: being written by another run; waiting (--wait)")
-                elif w := _start(seed, out, cfg, lock, decision, running, bar_lock, report):
-                    running.append(w)
+                else:
+                    if decision.message:
+                        tqdm.write(f"seed {seed}: {decision.message}")
+                    locks[seed] = lock
+                    executor.submit(SeedJob(seed, str(out), cfg.to_dict(), decision.replace, lock.fd))
             pending = waiting + pending
-            time.sleep(0.2)
-            for w in [w for w in running if w.proc.poll() is not None]:
-                running.remove(w)
-                report(w.finish())
+            for e in executor.events(timeout=0.2):
+                handle(e)
     except KeyboardInterrupt:
-        for w in running:
-            w.abandon()
+        executor.cancel_all()  # kills what runs, removes the partial folders it made
+        for lock in locks.values():
+            lock.release()
+        for b in bars.values():
+            b.close()
         overall.close()
         raise
     overall.close()
     return results
 
 
-def _start(seed, out, cfg, lock, decision, running, bar_lock, report) -> "_Worker | None":
-    """The seed's worker, started; or None (reported, unlocked) if its partial folder is taken."""
-    position = min(p for p in range(1, len(running) + 2) if p not in {w.position for w in running})
-    try:
-        w = _Worker(seed, out, cfg, position, lock, decision.replace, bar_lock)
-    except OSError as exc:
-        lock.release()
-        report(SeedResult(seed, "conflict", exc.strerror or str(exc)))
-        return None
-    for note in (w.note, decision.message):
-        if note:
-            tqdm.write(f"seed {seed}: {note}")
-    return w
+def _result(o: Outcome, attempts: int) -> SeedResult:
+    message = o.message
+    if o.status == "done" and attempts > 1:
+        message = f"retried: complete on attempt {attempts}"
+    return SeedResult(o.seed, o.status, message, o.summary, o.seconds, attempts)
 
 
 def one_line(r: SeedResult) -> str:
@@ -226,4 +177,5 @@ def one_line(r: SeedResult) -> str:
         return f"seed {r.seed}: {r.message}"
     s = r.summary
     return (f"seed {r.seed}: {s.get('frames', 0)} frames, {s.get('points', 0):,} points, "
-            f"{s.get('visible_tracks', 0):,} visible tracks, {r.seconds:.0f} s")
+            f"{s.get('visible_tracks', 0):,} visible tracks, {r.seconds:.0f} s"
+            + (f" ({r.message})" if r.message else ""))

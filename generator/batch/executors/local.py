@@ -1,0 +1,87 @@
+"""The local executor: up to ``workers`` seeds at once on this machine, each in its own
+worker process driven by a thread of the runner (seed.produce_seed). The worker shares the
+seed's lock descriptor and dies with the runner (PR_SET_PDEATHSIG). A worker that dies is
+a failed seed (no retry). bpy-free."""
+
+from __future__ import annotations
+
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import threading
+from pathlib import Path
+
+from .. import folders
+from . import Executor, SeedJob, produce_seed
+
+
+class LocalExecutor(Executor):
+    name = "local"
+
+    def __init__(self, workers: int = 1):
+        self.workers = workers
+        self.queue: queue.Queue = queue.Queue()
+        self.running: dict[int, tuple[SeedJob, threading.Thread]] = {}
+        self.procs: dict[int, subprocess.Popen] = {}
+        self.cancelled = threading.Event()
+
+    def room(self) -> int:
+        return self.workers - len(self.running)
+
+    def submit(self, job: SeedJob) -> None:
+        env = job.env | {k: v for k, v in os.environ.items() if k.startswith(self.FORWARDED_ENV_PREFIX)}
+        job = SeedJob(job.seed, job.out, job.config, job.replace, job.lock_fd, env)
+        thread = threading.Thread(target=self._run, args=(job,), daemon=True)
+        self.running[job.seed] = (job, thread)
+        thread.start()
+
+    def _run(self, job: SeedJob) -> None:
+        def emit(event: dict) -> None:
+            self.queue.put({"seed": job.seed, **event})
+
+        def started(proc: subprocess.Popen) -> None:
+            self.procs[job.seed] = proc
+            if self.cancelled.is_set():  # cancel_all ran while this one was starting
+                _kill(proc)
+
+        try:
+            outcome = produce_seed(job, emit, started)
+        except Exception as exc:  # reported as the seed's failure, never lost
+            from . import Outcome
+
+            outcome = Outcome(job.seed, "failed", f"{exc.__class__.__name__}: {exc}")
+        self.queue.put({"seed": job.seed, "event": "result", "outcome": outcome, "attempts": 1})
+
+    def events(self, timeout: float) -> list[dict]:
+        got = []
+        try:
+            got.append(self.queue.get(timeout=timeout))
+            while True:
+                got.append(self.queue.get_nowait())
+        except queue.Empty:
+            pass
+        for e in got:
+            if e["event"] == "result":
+                self.running.pop(e["seed"], (None, None))[1].join()
+                self.procs.pop(e["seed"], None)
+        return got
+
+    def cancel_all(self) -> None:
+        """Kill every worker process, wait for its thread, remove its partial folder."""
+        self.cancelled.set()
+        for proc in list(self.procs.values()):
+            _kill(proc)
+        for seed, (job, thread) in list(self.running.items()):
+            thread.join()
+            shutil.rmtree(folders.partial_folder(Path(job.out), seed), ignore_errors=True)
+        self.running.clear()
+        self.procs.clear()
+
+
+def _kill(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except ProcessLookupError:
+        pass

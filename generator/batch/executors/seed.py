@@ -1,0 +1,122 @@
+"""A seed's work, the one function every executor runs: a fresh, marked partial folder,
+one fresh worker process (``python -m generator.batch.worker``: build, fly, write the
+files, manifest last), its progress events forwarded as they come, then the checked,
+atomic commit (``folders.commit``). The local executor calls it in a thread of the
+runner; the Ray executor in a Ray task on whichever node runs the seed. bpy-free.
+
+Call it holding the seed's lock (the runner takes it before submitting)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from .. import folders
+
+ROOT = Path(__file__).resolve().parents[3]  # the worker runs with the repository as its working folder
+
+
+@dataclass(frozen=True)
+class SeedJob:
+    """What to make: ``seed`` with ``config`` (RunConfig.to_dict()) into ``out`` (an absolute
+    path every node sees); ``replace``: a complete seed there is replaced on commit;
+    ``lock_fd``: the seed's lock descriptor, shared with the worker process (local only);
+    ``env``: variables added to the worker's environment."""
+
+    seed: int
+    out: str
+    config: dict
+    replace: bool = False
+    lock_fd: int | None = None
+    env: dict = field(default_factory=dict)
+
+
+@dataclass
+class Outcome:
+    """How one attempt at a seed ended. ``status``: 'done' (committed), 'failed' or
+    'conflict' (its partial folder's name is taken by something not ours); ``lost``: the
+    worker process was killed by a signal (a crash, the OOM killer, a kill), so another
+    attempt may succeed; ``note``: what was found and removed before starting."""
+
+    seed: int
+    status: str
+    message: str = ""
+    summary: dict = field(default_factory=dict)
+    seconds: float = 0.0
+    lost: bool = False
+    note: str = ""
+
+
+Emit = Callable[[dict], None]
+
+
+def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen], None] | None = None) -> Outcome:
+    """Make ``job.seed`` in a partial folder of ``job.out`` and commit it. ``emit`` receives
+    the seed's progress events as they happen: {"event": "note", "message"} (something of an
+    earlier run was removed), {"event": "start", "frames"} (frames to render) and
+    {"event": "frame"} (one more frame written). ``started`` receives the worker process
+    (to cancel it: kill its process group)."""
+    out, t0 = Path(job.out), time.perf_counter()
+    try:
+        folder, note = folders.start_partial(out, job.seed)
+    except OSError as exc:
+        return Outcome(job.seed, "conflict", exc.strerror or str(exc))
+    if note:
+        emit({"event": "note", "message": note})
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | job.env
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, cwd=ROOT,
+        pass_fds=() if job.lock_fd is None else (job.lock_fd,))
+    if started:
+        started(proc)
+    stderr: list[str] = []
+    reader = threading.Thread(target=lambda: stderr.append(proc.stderr.read()), daemon=True)
+    reader.start()
+    errors, done = [], None
+    for line in proc.stdout:
+        if not line.startswith("@@"):
+            continue
+        event = json.loads(line[2:])
+        if event["event"] == "frame":
+            emit({"event": "frame"})
+        elif event["event"] == "start":
+            emit({"event": "start", "frames": event["frames"]})
+        elif event["event"] == "error":
+            errors.append(event["message"])
+        elif event["event"] == "done":
+            done = event["summary"]
+    code = proc.wait()
+    reader.join()
+    seconds = time.perf_counter() - t0
+    if code == 0 and done is not None:
+        try:
+            problem = folders.commit(out, job.seed, job.config, job.replace)
+        except OSError as exc:
+            problem = f"{exc.filename or folder}: {exc.strerror}"
+        if not problem:
+            return Outcome(job.seed, "done", "", done, seconds, note=note)
+        return Outcome(job.seed, "failed", f"not committed: {problem}", {}, seconds, note=note)
+    return Outcome(job.seed, "failed", _cause(code, errors, "".join(stderr), folder), {}, seconds, lost=code < 0,
+                   note=note)
+
+
+def _cause(code: int, errors: list[str], stderr: str, folder: Path) -> str:
+    """One line saying why the worker failed, and where its traceback is."""
+    if errors:
+        cause = errors[0]
+    elif code < 0:
+        cause = f"worker process killed by {signal.Signals(-code).name}" + \
+            (" (out of memory?)" if code == -signal.SIGKILL else "")
+    else:
+        cause = (stderr.strip().splitlines() or [f"exit code {code}"])[-1]
+    log = folder / "error.log"
+    return cause + (f" (details: {log})" if log.exists() else "")
