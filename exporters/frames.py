@@ -123,7 +123,10 @@ class FrameReader:
         out = {}
         in_exr = [k for k in keys if MODALITIES[k].part is not None]
         if in_exr:
-            exr = read_frame_exr(self.folder / frame_names(index)[0], in_exr)
+            path = self.folder / frame_names(index)[0]
+            if not path.is_file():
+                raise DamagedFileError(f"{path}: missing frame; {REMEDY}")
+            exr = read_frame_exr(path, in_exr)
             absent = [k for k in in_exr if k not in exr]
             if absent:
                 raise DamagedFileError(f"{self.folder / frame_names(index)[0]}: damaged frame (no "

@@ -14,6 +14,8 @@ from datasets import ClipDataset, Compose, Crop, DatasetError, FrameDataset, Poi
 from datasets.transforms import linear_to_srgb, srgb_to_linear
 from exporters import FORMAT_VERSION
 from exporters.exr import read_frame_exr
+from exporters.modalities import MODALITIES
+from PIL import Image
 from exporters.ply import read_ply
 from exporters.tracks import read_tracks
 from generator.geometry.camera import project
@@ -33,12 +35,17 @@ def test_scene_reads_back_what_was_written(seed_folder):
         seq = scene[kind]
         written = read_tracks(seed_folder / kind / "tracks.h5")
         traj = Trajectory.load(seed_folder / kind / "trajectory.npz")
+        assert seq.modalities == tuple(MODALITIES)  # the default writes every modality
         for i, frame in enumerate(seq[:]):
             exr = read_frame_exr(seed_folder / kind / f"frame_{i:06d}.exr")
-            assert frame.rgb.dtype == np.float16
-            np.testing.assert_array_equal(frame.rgb, exr["rgb"])
-            for key in ("depth", "label", "instance"):
+            assert set(exr) == {"header"} | {n for n in MODALITIES if MODALITIES[n].part is not None}
+            png = np.asarray(Image.open(seed_folder / kind / f"rgb_{i:06d}.png"))
+            assert frame.rgb.dtype == np.float32
+            np.testing.assert_array_equal(frame.rgb, png.astype(np.float32) / np.float32(255))
+            for key in set(exr) - {"header"}:
                 np.testing.assert_array_equal(getattr(frame, key), exr[key])
+                np.testing.assert_array_equal(frame[key], exr[key])
+            assert frame.rgb_linear.dtype == np.float16 and frame.normal.shape == frame.flow.shape[:2] + (3,)
             np.testing.assert_array_equal(frame.pose, traj.poses[i])
             np.testing.assert_array_equal(frame.K, written["K"])
             assert frame.timestamp == traj.timestamps[i]

@@ -39,12 +39,21 @@ def test_transforms_json_reproduces_the_poses(seed_folder, kind):
         # the OpenGL camera looks down its -z: the OpenCV optical axis
         np.testing.assert_allclose(-c2w_gl[:3, 2], tracks["world_from_camera"][t][:3, 2], atol=1e-12)
         assert (folder / frame["file_path"]).is_file()
+        assert frame["depth_path"] == frame["depth_file_path"]  # instant-NGP's key and nerfstudio's
         depth_png = read_depth_png(folder / frame["depth_file_path"])
         depth_exr = read_frame_exr(folder / f"frame_{t:06d}.exr")["depth"]
-        near = np.isfinite(depth_exr) & (depth_exr < 65.0)
-        assert near.any()
-        assert np.abs(depth_png[near] - depth_exr[near]).max() <= 0.0005 + 1e-6  # millimetre rounding
-        assert np.isinf(depth_png[~np.isfinite(depth_exr)]).all()
+        surface = np.isfinite(depth_exr)
+        assert surface.any() and np.isfinite(depth_png[surface]).all()  # no surface is ever dropped
+        unit = doc["integer_depth_scale"]
+        assert unit == doc["depth_unit_scale_factor"] and 65535 * unit >= depth_exr[surface].max()
+        assert np.abs(depth_png[surface] - depth_exr[surface]).max() <= unit / 2 + 1e-6  # rounding to the unit
+        assert np.isinf(depth_png[~surface]).all()
+    # instant-NGP: the cameras' box fills its unit cube; splatting trainers start from the coloured COLMAP points
+    centres = np.stack([np.array(f["transform_matrix"])[:3, 3] for f in doc["frames"]]) * doc["scale"] + doc["offset"]
+    assert (centres > 0).all() and (centres < 1).all() and doc["aabb_scale"] in (1, 2, 4, 8, 16, 32, 64, 128)
+    cloud = import_open3d().io.read_point_cloud(str(folder / doc["ply_file_path"]))
+    rec = pycolmap.Reconstruction(str(folder / "sparse" / "0"))
+    assert len(cloud.points) == rec.num_points3D() > 0 and cloud.has_colors()
 
 
 def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
@@ -147,8 +156,12 @@ def test_colmap_text_on_request_and_previews(seed_folder):
     # the label tile of the first row shows the label map in class colours
     labels = json.loads((seed_folder / "labels.json").read_text())
     lab = read_frame_exr(seed_folder / "orbit" / "frame_000000.exr")["label"]
-    tile = sheet[14:14 + 32, 4 + 2 * (48 + 4):4 + 2 * (48 + 4) + 48]
+    tile = sheet[14:14 + 32, 4 + 2 * (48 + 4):4 + 2 * (48 + 4) + 48]  # columns: rgb, depth, label, ...
     np.testing.assert_array_equal(tile[lab >= 0], label_colors(labels)[lab[lab >= 0]])
+    normal = read_frame_exr(seed_folder / "orbit" / "frame_000000.exr")["normal"]
+    tile = sheet[14:14 + 32, 4 + 4 * (48 + 4):4 + 4 * (48 + 4) + 48]  # ... instance, normal
+    hit = np.abs(normal).sum(-1) > 0
+    np.testing.assert_allclose(tile[hit], (normal[hit] + 1) / 2 * 255, atol=0.51)
     assert Image.open(seed_folder / "orbit" / "map.png").size[0] > 100
 
 
