@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters.hdf5 import H5_ERRORS, DamagedFileError, attribute, damaged, group, open_file, reason, verify
+from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
 
 from .inputs import InputError, regular_file
 
@@ -32,14 +32,15 @@ MAX_PIXELS = 1e6  # |x|, |y| of a visible predicted position: beyond it, refused
 def read_tracks_gt(path: Path) -> tuple[dict, tuple[int, int]]:
     """The TAP-Vid subset of a tracks.h5 and its image size (W, H), checked (checksums where
     the file has them, consistency always); a damaged file raises InputError naming it."""
-    from exporters.tracks import read_tapvid
+    from exporters.tracks import TrackReader
 
     try:
-        with open_file(path) as f:
-            verify(f, path)  # every checksum of the file: a damaged ground truth is never scored
-            truth = read_tapvid(f, path)
-            cams = group(f, "cameras", path)
-            size = (int(attribute(cams, "width", path)), int(attribute(cams, "height", path)))
+        reader = TrackReader(path)
+        try:
+            truth = reader.tapvid(verify_checksums=True)  # a damaged ground truth is never scored
+            size = (reader.width, reader.height)
+        finally:
+            reader.close()
     except DamagedFileError as exc:
         raise InputError(f"{exc} (or give a trajectory's tracks.h5 written by python -m generator)") from None
     except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks

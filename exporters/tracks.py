@@ -1,7 +1,8 @@
 """Per-trajectory point tracks in HDF5 (``tracks.h5``), readable with plain h5py.
 
 Layout (all lengths in metres, pixels as (x, y) with the top-left pixel's centre at
-(0.5, 0.5), poses OpenCV world_from_camera); attributes restate units and conventions.
+(0.5, 0.5), poses OpenCV world_from_camera); every dataset states its unit in its ``units``
+attribute (:data:`UNITS`), the root attributes restate the conventions.
 
   /cameras    width, height (attrs); K (3, 3); world_from_camera (T, 4, 4); timestamps (T,) s
   /points     local (N, 3) float64: world coordinates for static points, object frame for
@@ -19,11 +20,15 @@ Layout (all lengths in metres, pixels as (x, y) with the top-left pixel's centre
 Every dataset carries HDF5's Fletcher-32 checksum and the file uses the HDF5 1.10 format
 (checksummed metadata), so a damaged file fails to read instead of giving other values
 (exporters/hdf5.py); ``objects/names`` holds fixed-length UTF-8 bytes for the same reason.
+
+:class:`TrackReader` is the one reader of this schema (datasets, evaluation and tests use it).
 """
 
 from __future__ import annotations
 
 import json
+import os
+from functools import cached_property
 from pathlib import Path
 
 import h5py
@@ -33,9 +38,41 @@ from generator.geometry.camera import project
 
 from . import FORMAT_VERSION
 from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, attribute, create_file, damaged, dataset, group, open_file, read,
-                   reason, text, text_attribute)
+                   reason, text, text_attribute, verify)
 
 _CHUNK = 1 << 16
+
+# the ``units`` attribute of every dataset (and of the cameras group, for its width/height)
+UNITS = {
+    "cameras": "width, height: pixels",
+    "cameras/K": "pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], OpenCV pinhole, top-left pixel centre (0.5, 0.5)",
+    "cameras/world_from_camera": "4x4 rigid, translation in metres; OpenCV camera axes (x right, y down, z forward)",
+    "cameras/timestamps": "seconds from the first frame",
+    "points/local": "metres; world frame for static points, object frame for dynamic points",
+    "points/label": "label id (index into the labels attribute), -1 = unlabelled",
+    "points/instance": "object id (index into the object table, as the instance maps)",
+    "points/dynamic_object": "index into objects/names, -1 = static point",
+    "objects/names": "object names (UTF-8)",
+    "objects/world_from_object": "4x4, translation in metres",
+    "visibility/offsets": "indices into visibility/index: frame t is [offsets[t], offsets[t + 1])",
+    "visibility/index": "point ids",
+    "visibility/xy": "pixels (x, y), top-left pixel centre (0.5, 0.5)",
+    "visibility/depth": "metres, planar depth (camera z)",
+    "dynamic/point_ids": "point ids",
+    "dynamic/positions": "metres, world frame",
+    "coverage": "share of all points observed at least once after each frame, 0..1",
+    "tapvid/query_points": "(t, y, x): frame index, pixels",
+    "tapvid/tracks": "pixels (x, y), top-left pixel centre (0.5, 0.5)",
+    "tapvid/occluded": "True = not visible",
+    "tapvid/tracks_3d": "metres, world frame",
+    "tapvid/point_ids": "point ids",
+}
+
+
+def _write_units(f: h5py.File, prefix: str = "") -> None:
+    for name, unit in UNITS.items():
+        if name.startswith(prefix) and name in f:
+            f[name].attrs["units"] = text_attribute(unit)
 
 
 def _append(ds, values) -> None:
@@ -85,6 +122,7 @@ class TrackWriter:
         dyn.create_dataset("positions", (0, len(self.dyn_ids), 3), maxshape=(None, len(self.dyn_ids) or None, 3), dtype="f4",
                            chunks=(1, max(len(self.dyn_ids), 1), 3), **opts, **CHECKSUM)
         f.create_dataset("coverage", (0,), maxshape=(None,), dtype="f8", chunks=(1024,), **CHECKSUM)
+        _write_units(f)
 
     def add_frame(self, timestamp: float, world_from_camera: np.ndarray, world_points: np.ndarray,
                   visible: np.ndarray, object_matrices: np.ndarray, coverage: float) -> None:
@@ -128,6 +166,7 @@ class TrackWriter:
         dataset(g, "tracks", tracks.astype(np.float32))
         dataset(g, "occluded", occluded)
         dataset(g, "tracks_3d", tracks_3d.astype(np.float32))
+        _write_units(f, "tapvid/")
         f.close()
         return self.path
 
@@ -176,33 +215,158 @@ def check_tracks(data: dict, path) -> None:
 
 
 def read_tracks(path: str | Path) -> dict:
-    """Everything in a tracks.h5 as numpy arrays (plus 'tapvid' and 'labels'). A damaged file
-    (checksum, structure) raises :class:`DamagedFileError` naming it."""
-    path = Path(path)
+    """Everything in a tracks.h5 as numpy arrays (plus 'tapvid', 'labels' and 'units');
+    :meth:`TrackReader.read_all`."""
+    reader = TrackReader(path)
     try:
-        return _read_tracks(path)
-    except DamagedFileError:
-        raise
-    except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks
-        raise damaged(path, reason(exc)) from None
+        return reader.read_all()
+    finally:
+        reader.close()
 
 
-def _read_tracks(path: Path) -> dict:
-    with open_file(path) as f:
+def _version_error(path: Path, version) -> DamagedFileError:
+    return DamagedFileError(f"{path}: format_version {version!r}; this reader reads {FORMAT_VERSION} (update buildee-sites, "
+                            "or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+
+
+class TrackReader:
+    """One ``tracks.h5``, read lazily: the file is opened once per process (and reopened after
+    a fork, so a reader can be handed to DataLoader workers) and datasets are read when asked.
+
+    On construction the format version and the camera arrays are read and checked:
+    ``K`` (3, 3), ``width``, ``height`` (pixels), ``poses`` (T, 4, 4) world_from_camera,
+    ``timestamps`` (T,) s, ``offsets`` (T + 1,), ``labels``, ``units`` (dataset -> unit).
+    Every failure (damaged file, checksum, other version, inconsistent arrays) raises
+    :class:`DamagedFileError` naming the file and the remedy."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._file, self._pid = None, None
+        try:
+            self._guard(self._read_header)
+        except DamagedFileError:
+            self.close()
+            raise
+
+    def _guard(self, call, *args):
+        try:
+            return call(*args)
+        except DamagedFileError:
+            raise
+        except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks
+            raise damaged(self.path, reason(exc)) from None
+
+    def file(self) -> h5py.File:
+        """The open file (this process's handle)."""
+        if self._file is None or self._pid != os.getpid():
+            self._file, self._pid = open_file(self.path), os.getpid()
+        return self._file
+
+    def close(self) -> None:
+        if self._file is not None and self._pid == os.getpid():
+            self._file.close()
+        self._file = None
+
+    def __enter__(self) -> "TrackReader":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __getstate__(self):
+        return self.__dict__ | {"_file": None, "_pid": None}
+
+    def read(self, key: str, sel=()) -> np.ndarray:
+        """Dataset ``key`` (e.g. ``"visibility/xy"``), optionally a selection of it."""
+        return self._guard(lambda: read(self.file(), key, self.path, sel))
+
+    def _read_header(self) -> None:
+        f = self.file()
         version = text(attribute(f, "format_version")) if "format_version" in f.attrs else None
         if version != FORMAT_VERSION:
-            raise DamagedFileError(f"{path}: tracks format {version!r}, this reader reads {FORMAT_VERSION} "
-                                   "(update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
-        data = read_tracks_file(f)
-        check_tracks(data, path)
+            raise _version_error(self.path, version)
+        cams = group(f, "cameras", self.path)
+        self.width, self.height = (int(attribute(cams, k, self.path)) for k in ("width", "height"))
+        self.K, self.poses = read(f, "cameras/K"), read(f, "cameras/world_from_camera")
+        self.timestamps, self.offsets = read(f, "cameras/timestamps"), read(f, "visibility/offsets")
         try:
-            data["labels"] = json.loads(text(attribute(f, "labels")))
+            self.labels = json.loads(text(attribute(f, "labels")))
         except ValueError as exc:
-            raise damaged(path, f"attribute labels: {exc.__class__.__name__}") from None
-        data["dynamic_positions"], data["dynamic_ids"] = read(f, "dynamic/positions"), read(f, "dynamic/point_ids")
-        if "tapvid" in f:
-            data["tapvid"] = read_tapvid(f, path)
-    return data
+            raise damaged(self.path, f"attribute labels: {exc.__class__.__name__}") from None
+        self.units = {}
+        f.visititems(lambda name, obj: self.units.__setitem__(name, text(obj.attrs["units"])) if "units" in obj.attrs else None)
+        T = len(self.poses)
+        problems = [
+            (self.K.shape != (3, 3) or not np.isfinite(self.K).all() or self.K[0, 0] <= 0 or self.K[1, 1] <= 0,
+             "cameras/K is not a valid intrinsic matrix"),
+            (self.width <= 0 or self.height <= 0, "camera size"),
+            (self.poses.shape[1:] != (4, 4) or not np.isfinite(self.poses).all(), "cameras/world_from_camera"),
+            (self.timestamps.shape != (T,) or not np.isfinite(self.timestamps).all(), "cameras/timestamps"),
+            (self.offsets.shape != (T + 1,) or (T and (self.offsets[0] != 0 or np.any(np.diff(self.offsets) < 0))),
+             "visibility/offsets"),
+        ]
+        for bad, what in problems:
+            if bad:
+                raise damaged(self.path, f"{what} is inconsistent")
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def visible(self, t: int) -> dict:
+        """Points visible at frame t (0 <= t < T): ``ids`` (n,), ``xy`` (n, 2) pixels, ``depth`` (n,) metres."""
+        a, b = int(self.offsets[t]), int(self.offsets[t + 1])
+        out = {k: self.read(f"visibility/{name}", np.s_[a:b]) for k, name in (("ids", "index"), ("xy", "xy"), ("depth", "depth"))}
+        if any(len(v) != b - a for v in out.values()) or (b > a and (out["ids"].min() < 0 or
+                                                                      out["ids"].max() >= len(self.points["label"]))):
+            raise damaged(self.path, f"visibility of frame {t} is inconsistent")
+        return out
+
+    @cached_property
+    def points(self) -> dict:
+        """The tracked surface points: ``local`` (N, 3), ``label``, ``instance``, ``dynamic_object`` (N,)."""
+        return {k: self.read(f"points/{k}") for k in ("local", "label", "instance", "dynamic_object")}
+
+    @cached_property
+    def object_matrices(self) -> np.ndarray:
+        """(T, D, 4, 4) world_from_object of the moving objects."""
+        return self.read("objects/world_from_object")
+
+    @cached_property
+    def coverage(self) -> np.ndarray:
+        """(T,) share of all points observed at least once after each frame."""
+        return self.read("coverage")
+
+    def positions(self, t: int, ids: np.ndarray) -> np.ndarray:
+        """World positions (n, 3) metres of points ``ids`` at frame t (dynamic ones moved)."""
+        p = self.points
+        return world_positions({"local": p["local"], "dynamic_object": p["dynamic_object"],
+                                "world_from_object": self.object_matrices}, t, ids)
+
+    def tapvid(self, verify_checksums: bool = False) -> dict:
+        """The TAP-Vid query subset, checked for consistency; with ``verify_checksums`` every
+        dataset of the file is read first, so any damage anywhere is refused."""
+        def load():
+            f = self.file()
+            if verify_checksums:
+                verify(f, self.path)
+            return read_tapvid(f, self.path)
+
+        return self._guard(load)
+
+    def read_all(self) -> dict:
+        """Every array of the file (the keys of ``_ARRAYS``, plus ``labels``, ``units``,
+        ``dynamic_positions``, ``dynamic_ids`` and ``tapvid`` when present), checked."""
+        def load():
+            f = self.file()
+            data = read_tracks_file(f)
+            check_tracks(data, self.path)
+            data |= {"labels": self.labels, "units": dict(self.units), "dynamic_positions": read(f, "dynamic/positions"),
+                     "dynamic_ids": read(f, "dynamic/point_ids")}
+            if "tapvid" in f:
+                data["tapvid"] = read_tapvid(f, self.path)
+            return data
+
+        return self._guard(load)
 
 
 TAPVID = ("query_points", "tracks", "occluded", "tracks_3d", "point_ids")

@@ -285,3 +285,63 @@ def test_amodal_box_of_triangles_crossing_the_camera_plane():
         lo, hi = xy[keep].min(0), xy[keep].max(0)
         assert box[0] <= lo[0] + 1e-9 and box[1] <= lo[1] + 1e-9 and box[2] >= hi[0] - 1e-9 and box[3] >= hi[1] - 1e-9
         assert max(lo[0] - box[0], lo[1] - box[1], box[2] - hi[0], box[3] - hi[1]) < 1.0
+
+
+# ---- tracks.h5: units and its one reader ---------------------------------------------------------
+def test_tracks_reader_round_trip_with_units(flown, tmp_path):
+    import pickle
+
+    import h5py
+
+    from exporters.tracks import UNITS, TrackReader, TrackWriter
+
+    sim, out = flown
+    reader = TrackReader(out / "tracks.h5")
+    np.testing.assert_array_equal(reader.K, sim.K)
+    assert (reader.width, reader.height, len(reader)) == (W, H, T) and reader.labels == sim.labels
+    with h5py.File(out / "tracks.h5", "r") as f:
+        datasets = []
+        f.visititems(lambda name, obj: datasets.append(name) if isinstance(obj, h5py.Dataset) else None)
+        assert set(f["cameras"].attrs) >= {"width", "height", "units"} and "width" not in f["cameras/K"].attrs
+    assert sorted(datasets) == sorted(k for k in UNITS if k != "cameras"), "every dataset has its unit declared"
+    assert {k: reader.units[k] for k in UNITS} == UNITS, "every dataset (and the cameras group) carries its unit"
+    assert "metres" in reader.units["visibility/depth"] and "pixels" in reader.units["visibility/xy"]
+    # a synthetic writer -> reader round trip, no Blender
+    rng = np.random.default_rng(0)
+    table = {"local": rng.uniform(-5, 5, (50, 3)), "labels": rng.integers(0, 3, 50), "instance": rng.integers(0, 4, 50),
+             "dynamic_object": np.where(np.arange(50) < 10, 0, -1)}
+    K = np.array([[40.0, 0, 16], [0, 40.0, 12], [0, 0, 1]])
+    w = TrackWriter(tmp_path / "t.h5", table, ["Truck"], ["A", "B", "C"], K, 32, 24, queries=8, seed=3)
+    poses, mats, vis = [], [], []
+    for t in range(4):
+        pose = look_at((0, -12 + t, 2), (0, 0, 0))
+        m = np.eye(4)
+        m[:3, 3] = [t, 0, 0]
+        v = rng.random(50) < 0.5
+        pts = table["local"].copy()
+        pts[:10] += [t, 0, 0]
+        w.add_frame(0.1 * t, pose, pts, v, m[None], 0.25 * t)
+        poses.append(pose), mats.append(m), vis.append(v)
+    w.close()
+    with TrackReader(tmp_path / "t.h5") as original:
+        r = pickle.loads(pickle.dumps(original))  # DataLoader workers get a copy, which opens the file itself
+    np.testing.assert_array_equal(r.poses, np.stack(poses))
+    np.testing.assert_array_equal(r.timestamps, 0.1 * np.arange(4))
+    np.testing.assert_array_equal(r.coverage, 0.25 * np.arange(4))
+    np.testing.assert_array_equal(r.object_matrices[:, 0], np.stack(mats))
+    for t in range(4):
+        v = r.visible(t)
+        np.testing.assert_array_equal(v["ids"], np.flatnonzero(vis[t]))
+        xy, z = project(r.positions(t, v["ids"]), poses[t], K)
+        np.testing.assert_allclose(v["xy"], xy, atol=1e-4)
+        np.testing.assert_allclose(v["depth"], z, rtol=1e-6)
+    assert r.units == reader.units
+    assert r.tapvid(verify_checksums=True)["tracks"].shape == (8, 4, 2)
+    r.close()
+    # another format version is refused with the command that regenerates the seed
+    with h5py.File(tmp_path / "t.h5", "r+") as f:
+        f.attrs["format_version"] = "0.1"
+    from exporters.hdf5 import DamagedFileError
+
+    with pytest.raises(DamagedFileError, match=r"format_version '0.1'.*python -m generator --seeds N --overwrite"):
+        TrackReader(tmp_path / "t.h5")
