@@ -1,0 +1,234 @@
+"""Timelines (#19, docs/phases.md): one real tiny run of ``python -m generator --phases 3``,
+checked against independent computations from the stages' own files."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT, run_generator
+
+from evaluation.change import gt_change_cloud, score_change_cloud, score_change_masks
+from exporters.changes import STATUS, read_changes
+from exporters.frames import FrameReader
+from exporters.ground_truth import read_ground_truth
+from exporters.ply import read_ply
+
+STAGES = 3
+SEED = 1
+TOL = 0.01  # docs/phases.md: point and depth tolerances
+
+
+@pytest.fixture(scope="module")
+def timeline(tmp_path_factory):
+    out = tmp_path_factory.mktemp("phases")
+    r = run_generator(out, "--seeds", str(SEED), "--phases", str(STAGES), "--trajectory", "orbit")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    seed = out / f"seed_{SEED:06d}"
+    return seed, read_changes(seed), [read_ground_truth(seed / f"phase_{k}") for k in range(STAGES)]
+
+
+def test_layout_and_manifest(timeline):
+    seed, changes, _ = timeline
+    manifest = json.loads((seed / "manifest.json").read_text())
+    files = set(manifest["files"])
+    assert {"changes.h5", "changes.png"} <= files
+    for k in range(STAGES):
+        assert {f"phase_{k}/labels.json", f"phase_{k}/scene/site.blend", f"phase_{k}/ground_truth/points.ply",
+                f"phase_{k}/orbit/trajectory.npz", f"phase_{k}/orbit/frame_000000.exr"} <= files
+    assert manifest["config"]["phases"] == STAGES and changes.stages == STAGES
+    poses = [np.load(seed / f"phase_{k}" / "orbit" / "trajectory.npz")["poses"] for k in range(STAGES)]
+    assert all(np.array_equal(poses[0], p) for p in poses[1:])  # the same trajectory in every stage
+
+
+def test_unchanged_instances_are_identical_with_stable_ids(timeline):
+    seed, changes, gts = timeline
+    seen = set()
+    for k in range(1, STAGES):
+        pair, a, b = changes.pair(k - 1, k), gts[k - 1], gts[k]
+        ta, tb = changes.stage_tables[k - 1], changes.stage_tables[k]
+        # the union table maps each stage's instance ids by object name
+        assert [changes.names[u] for u in ta] == [p.name for p in a.parts]
+        assert [changes.names[u] for u in tb] == [p.name for p in b.parts]
+        pa = {p.name: (i, p) for i, p in enumerate(a.parts)}
+        pb = {p.name: (i, p) for i, p in enumerate(b.parts)}
+        ca, cb = read_ply(seed / f"phase_{k - 1}/ground_truth/points.ply"), read_ply(seed / f"phase_{k}/ground_truth/points.ply")
+        for u, code in enumerate(pair.status):
+            if code < 0:
+                continue
+            name, status = changes.names[u], STATUS[code]
+            seen.add(status)
+            assert (name in pa) == (status != "added") and (name in pb) == (status != "removed"), (name, status)
+            if status in ("unchanged", "moved", "grown"):
+                (ia, p), (ib, q) = pa[name], pb[name]
+                va, vb = p.world_vertices(), q.world_vertices()
+                if status == "unchanged":
+                    assert np.array_equal(p.faces, q.faces) and np.array_equal(va, vb), name
+                    if not p.dynamic:  # its scoring points too, bit for bit
+                        xa = ca.points[ca.vertex["instance"] == ia]
+                        xb = cb.points[cb.vertex["instance"] == ib]
+                        assert np.array_equal(xa, xb), name
+                elif status == "moved":
+                    t = pair.transform[u]
+                    assert np.array_equal(p.faces, q.faces)
+                    assert np.abs(va @ t[:3, :3].T + t[:3, 3] - vb).max() < 1e-4
+                    assert not np.allclose(va, vb)
+                else:
+                    assert va.shape != vb.shape or not np.array_equal(va, vb)
+        # the fence and the ground never change
+        for u, name in enumerate(changes.names):
+            if name.startswith(("Fence.", "Ground.")):
+                assert STATUS[pair.status[u]] == "unchanged", name
+    assert {"unchanged", "added", "removed", "moved", "grown"} <= seen  # the timeline exercises every kind
+
+
+def _dense_surface(parts, density: float, rng) -> np.ndarray:
+    """Area-weighted samples (plus vertices) on every part but the ground (independent of the code under test)."""
+    out = []
+    for p in parts:
+        if p.label == "Ground" or len(p.faces) == 0:
+            continue
+        v = p.world_vertices()
+        tri = v[p.faces]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        n = rng.poisson(area * density)
+        idx = np.repeat(np.arange(len(tri)), n)
+        r1, r2 = rng.random(len(idx)), rng.random(len(idx))
+        s = np.sqrt(r1)
+        t = tri[idx]
+        out += [v, t[:, 0] * (1 - s)[:, None] + t[:, 1] * (s * (1 - r2))[:, None] + t[:, 2] * (s * r2)[:, None]]
+    return np.concatenate(out)
+
+
+def _segment_distance(p, a, b):
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-30), 0, 1)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+def _exact_distance(point, tri):
+    """Distance from one point to the nearest of triangles (M, 3, 3), in numpy (plane inside the
+    triangle, else the nearest edge); an independent twin of the Embree query under test."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    p = np.broadcast_to(point, a.shape)
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-15
+    n = n / np.where(ok, norm, 1.0)[:, None]
+    h = np.einsum("ij,ij->i", p - a, n)
+    q = p - h[:, None] * n
+    inside = ok & np.all([np.einsum("ij,ij->i", np.cross(v1 - v0, q - v0), n) >= 0
+                          for v0, v1 in ((a, b), (b, c), (c, a))], axis=0)
+    plane = np.where(inside, np.abs(h), np.inf)
+    return float(np.min(np.minimum(plane, np.minimum.reduce([_segment_distance(p, a, b), _segment_distance(p, b, c),
+                                                              _segment_distance(p, c, a)]))))
+
+
+def _exact_distances(points, parts, reach):
+    tri = np.concatenate([p.world_vertices()[p.faces] for p in parts if len(p.faces)])
+    lo, hi = tri.min(axis=1) - reach, tri.max(axis=1) + reach
+    out = np.full(len(points), np.inf)
+    for i, x in enumerate(points):
+        near = np.all((lo <= x) & (x <= hi), axis=1)
+        if near.any():
+            out[i] = _exact_distance(x, tri[near])
+    return out
+
+
+def test_point_labels_agree_with_an_independent_distance_check(timeline):
+    from scipy.spatial import cKDTree
+
+    seed, changes, gts = timeline
+    rng = np.random.default_rng(0)
+    for k in range(1, STAGES):
+        pair = changes.pair(k - 1, k)
+        for flags, cloud_stage, other in ((pair.points_added, k, gts[k - 1]), (pair.points_removed, k - 1, gts[k])):
+            xyz = read_ply(seed / f"phase_{cloud_stage}/ground_truth/points.ply").points
+            assert len(flags) == len(xyz) and flags.any() and (~flags).any()
+            dense = cKDTree(_dense_surface(other.parts, 400.0, rng))
+            d = np.minimum(dense.query(xyz)[0], np.abs(xyz[:, 2]))  # the ground is the plane z = 0
+            # a changed point is farther than the tolerance from every sample of the other surface
+            assert (d[flags] > TOL - 1e-4).all()
+            # most unchanged points have a sample of the other surface within the samples' spacing;
+            # the others (thin wires, sparse samples) and the changed points near the other surface
+            # are settled by exact point-to-triangle distances
+            assert np.mean(d[~flags] < 0.05) > 0.98
+            check = np.flatnonzero((~flags & (d >= 0.05)) | (flags & (d < 0.1)))
+            check = rng.choice(check, min(len(check), 300), replace=False)  # the test's time
+            exact = _exact_distances(xyz[check], other.parts, 0.2)
+            wrong = (exact > TOL) != flags[check]
+            assert (np.abs(exact[wrong] - TOL) < 1e-4).all(), (exact[wrong], flags[check][wrong])
+            # changed points lie on objects whose status is not "unchanged"
+            inst = read_ply(seed / f"phase_{cloud_stage}/ground_truth/points.ply").vertex["instance"]
+            union = changes.stage_tables[cloud_stage][inst[flags]]
+            assert not np.any(pair.status[union] == STATUS.index("unchanged"))
+
+
+def test_frame_masks_agree_with_depth_and_instance_maps(timeline):
+    seed, changes, gts = timeline
+    for k in range(1, STAGES):
+        na, nb = [p.name for p in gts[k - 1].parts], [p.name for p in gts[k].parts]
+        ra, rb = FrameReader(seed / f"phase_{k - 1}/orbit"), FrameReader(seed / f"phase_{k}/orbit")
+        masks = changes.pair(k - 1, k).masks["orbit"]
+        assert masks.shape == (ra.frames, ra.height, ra.width)
+        for i in range(ra.frames):
+            fa, fb = ra.read(i, ["depth", "instance"]), rb.read(i, ["depth", "instance"])
+            obj_a = np.array([na[j] if j >= 0 else "" for j in fa["instance"].ravel()]).reshape(fa["instance"].shape)
+            obj_b = np.array([nb[j] if j >= 0 else "" for j in fb["instance"].ravel()]).reshape(fb["instance"].shape)
+            za, zb = fa["depth"].astype(np.float64), fb["depth"].astype(np.float64)
+            with np.errstate(invalid="ignore"):  # inf - inf where neither sees a surface
+                close = np.abs(za - zb) <= TOL
+            same_depth = (np.isinf(za) & np.isinf(zb)) | (np.isfinite(za) & np.isfinite(zb) & close)
+            expected = (obj_a != obj_b) | ~same_depth
+            assert np.array_equal(masks[i], expected), (k, i)
+    assert any(m.any() for p in changes.pairs.values() for m in p.masks.values())
+    assert any((~m).any() for p in changes.pairs.values() for m in p.masks.values())
+
+
+def test_ground_truth_as_prediction_scores_perfectly(timeline, tmp_path):
+    seed, changes, _ = timeline
+    xyz, code, _ = gt_change_cloud(seed, 0, 1)
+    s = score_change_cloud(xyz, code, xyz, code, 0.1)
+    assert s["added"]["iou"] == s["removed"]["iou"] == s["mean_iou"] == 1.0
+    np.savez(tmp_path / "pred.npz", masks=changes.pair(0, 1).masks["orbit"])
+    r = subprocess.run([sys.executable, "-m", "evaluation", "change", "--gt", str(seed), "--stages", "0", "1",
+                        "--pred", str(tmp_path / "pred.npz"), "--json", str(tmp_path / "r.json")],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    res = json.loads((tmp_path / "r.json").read_text())
+    assert res["scores"]["changed"]["iou"] == res["scores"]["unchanged"]["iou"] == 1.0
+    assert res["parameters"]["kind"] == "orbit" and res["parameters"]["depth_tolerance_m"] == TOL
+    for stages in (["0", "2"], ["2", "3"], ["-1", "0"]):
+        r = subprocess.run([sys.executable, "-m", "evaluation", "change", "--gt", str(seed), "--stages", *stages,
+                            "--pred", str(tmp_path / "pred.npz")], capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "stages" in r.stderr, r.stderr
+
+
+def test_hand_built_scores():
+    gt = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0]])
+    gt_code = np.array([1, 1, 2])
+    pred = np.array([[0.0, 0, 0.05], [3, 0, 0], [5, 0, 0.2]])
+    pred_code = np.array([1, 1, 1])
+    s = score_change_cloud(gt, gt_code, pred, pred_code, tau=0.1)
+    # added: pred (0,0,.05) matches (0,0,0); (3,0,0) and (5,0,.2) match no added GT point -> P = 1/3;
+    # GT (0,0,0) matched, (1,0,0) not -> R = 1/2; IoU = PR / (P + R - PR) = (1/6) / (2/3) = 1/4
+    assert s["added"]["precision"] == pytest.approx(1 / 3) and s["added"]["recall"] == pytest.approx(0.5)
+    assert s["added"]["iou"] == pytest.approx(0.25) and s["added"]["fscore"] == pytest.approx(0.4)
+    # removed: nothing predicted -> precision undefined, recall 0, IoU 0
+    assert s["removed"]["precision"] is None and s["removed"]["recall"] == 0 and s["removed"]["iou"] == 0
+    assert s["mean_iou"] == pytest.approx(0.125)
+    m = score_change_masks(np.array([[[1, 0], [1, 0]]], bool), np.array([[[1, 1], [0, 0]]], bool))
+    assert (m["changed"]["tp"], m["changed"]["fp"], m["changed"]["fn"]) == (1, 1, 1)
+    assert m["changed"]["iou"] == pytest.approx(1 / 3) and m["unchanged"]["precision"] == pytest.approx(0.5)
+
+
+def test_bad_phases_get_one_line_and_exit_2(tmp_path):
+    for value in ("0", "17", "x"):
+        r = run_generator(tmp_path, "--seeds", "1", "--phases", value)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "phases" in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr
+    from generator.scene import plan_site, site_params
+
+    with pytest.raises(ValueError, match="stage 3 is outside"):
+        plan_site(0, site_params("small"), 3, 3)
