@@ -158,6 +158,29 @@ class Sequence:
         return _checked(lambda: self.tracks.coverage)
 
     @cached_property
+    def coco(self):
+        """The trajectory's instance masks and 2D boxes (``coco.json``, :class:`exporters.coco.CocoReader`)."""
+        from exporters.coco import CocoReader
+
+        return _checked(CocoReader, self.folder / "coco.json")
+
+    @cached_property
+    def boxes3d(self):
+        """The trajectory's 3D boxes (``boxes3d.json``, :class:`exporters.boxes3d.Boxes3DReader`)."""
+        from exporters.boxes3d import Boxes3DReader
+
+        return _checked(Boxes3DReader, self.folder / "boxes3d.json")
+
+    def annotations(self, t: int) -> dict:
+        """The objects in frame t (Python indexing): ``boxes2d`` (from coco.json: ``instance_id``,
+        ``label``, ``category_id``, ``area`` (n,), ``bbox`` and ``amodal_bbox`` (n, 4) as
+        (x0, y0, x1, y1) pixel edges; instance k's mask is ``frame.instance == instance_id[k]``)
+        and ``boxes3d`` (``instance``, ``label``, ``pixels``, ``pixel_share`` (n,), ``centre``,
+        ``size`` (n, 3) metres, ``rotation`` (n, 3, 3) world_from_box). docs/format.md."""
+        t = check_index(t, len(self), f"{self.kind} frame")
+        return {"boxes2d": _checked(self.coco.frame, t), "boxes3d": _checked(self.boxes3d.frame, t)}
+
+    @cached_property
     def tapvid(self) -> dict:
         """TAP-Vid query subset: query_points (Q, 3) (t, y, x), tracks (Q, T, 2) (x, y),
         occluded (Q, T), tracks_3d (Q, T, 3), point_ids (Q,) (checked for consistency)."""

@@ -61,13 +61,15 @@ class FrameDataset(_Base):
     backward_flow: those stored), K, pose, timestamp, scene (seed), trajectory, index.
 
     ``trajectories``: kinds to include (default: all); ``keys``: modalities to return
-    (default: every stored one; exporters/modalities.py)."""
+    (default: every stored one; exporters/modalities.py). ``annotations=True`` adds the
+    frame's objects, ``boxes2d`` and ``boxes3d`` (:meth:`Sequence.annotations`); their
+    lengths vary by frame, so batch them with a collate function of your own."""
 
     def __init__(self, paths, trajectories: list[str] | None = None, transform: Callable | None = None,
-                 as_tensor: bool = False, keys: tuple[str, ...] | None = None):
+                 as_tensor: bool = False, keys: tuple[str, ...] | None = None, annotations: bool = False):
         super().__init__(transform, as_tensor)
         self.scenes = _scenes(paths)
-        self.keys = keys
+        self.keys, self.annotations = keys, annotations
         self.index: list[tuple[int, str, int]] = []
         for s, scene in enumerate(self.scenes):
             for kind in trajectories or scene.trajectories:
@@ -83,6 +85,8 @@ class FrameDataset(_Base):
         sample = dict(f.outputs)
         sample |= {"K": f.K, "pose": f.pose, "timestamp": f.timestamp, "scene": scene.seed, "trajectory": kind,
                    "index": j}
+        if self.annotations:
+            sample |= scene[kind].annotations(j)
         return self._finish(sample)
 
 

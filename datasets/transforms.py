@@ -12,6 +12,12 @@ bilinearly at the new pixel centres where the four source pixels lie on one cont
 surface, by nearest neighbour across depth edges and next to missing values; normals are
 renormalised; flow vectors are scaled by the resize ratio of their axis (a crop leaves them
 unchanged).
+
+Objects (``FrameDataset(..., annotations=True)``): ``masks`` (n, H, W) are resampled like
+ids; in ``boxes2d`` the amodal boxes move with the image and are clipped to it, and the
+visible boxes and areas are recomputed exactly from the transformed ``instance`` map (or the
+masks), so they stay the tight boxes of the masks; objects left without a pixel are dropped
+from ``boxes2d`` (and ``masks``). ``boxes3d`` are in the world frame and do not change.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ import numpy as np
 from PIL import Image
 
 from exporters.modalities import MODALITIES
+from generator.geometry.boxes import tight_boxes
 
 EDGE_RATIO = 1.05  # four source depths spanning more than 5% make a depth edge: nearest there
 
@@ -32,6 +39,34 @@ def _tracks(sample: dict, fn) -> None:
     for key in ("tracks", "tracks_next"):
         if key in sample and sample[key] is not None and "xy" in sample[key]:
             sample[key] = dict(sample[key]) | {"xy": fn(np.asarray(sample[key]["xy"], np.float64))}
+
+
+def _objects(out: dict, move, width: int, height: int, resample) -> None:
+    """Make ``masks`` and ``boxes2d`` follow an image transform: ``move`` maps pixel positions
+    (n, 2) to the new image of ``width`` x ``height``, ``resample`` maps an (H, W) id image."""
+    if "masks" in out:
+        out["masks"] = np.stack([resample(m) for m in out["masks"]]) if len(out["masks"]) else \
+            np.zeros((0, height, width), bool)
+    if out.get("boxes2d") is None:
+        return
+    b = dict(out["boxes2d"])
+    n = len(b["instance_id"])
+    if "masks" in out:
+        boxes, area = np.zeros((n, 4)), out["masks"].reshape(n, -1).sum(1)
+        for k, m in enumerate(out["masks"]):
+            boxes[k] = tight_boxes(m.astype(np.int8), np.array([1]))[0][0]
+    elif "instance" in out:
+        boxes, area = tight_boxes(out["instance"], b["instance_id"])
+    else:
+        raise ValueError("boxes2d can only be transformed exactly with the sample's instance map (or masks): "
+                         "keep 'instance' in the dataset's keys")
+    amodal = move(np.asarray(b["amodal_bbox"], np.float64).reshape(-1, 2)).reshape(-1, 4)
+    b["amodal_bbox"] = np.clip(amodal, 0, [width, height, width, height])
+    b["bbox"], b["area"] = boxes, area.astype(np.int64)
+    keep = area > 0
+    out["boxes2d"] = {k: (v[keep] if isinstance(v, np.ndarray) and len(v) == n else v) for k, v in b.items()}
+    if "masks" in out:
+        out["masks"] = out["masks"][keep]
 
 
 class Crop:
@@ -50,6 +85,8 @@ class Crop:
                 raise ValueError(f"crop window {(self.x0, self.y0, self.width, self.height)} exceeds the "
                                  f"{img.shape[1]}x{img.shape[0]} image")
             out[key] = img[self.y0:self.y0 + self.height, self.x0:self.x0 + self.width]
+        _objects(out, lambda xy: xy - [self.x0, self.y0], self.width, self.height,
+                 lambda m: m[self.y0:self.y0 + self.height, self.x0:self.x0 + self.width])
         if "K" in out:
             K = np.array(out["K"], np.float64)
             K[0, 2] -= self.x0
@@ -140,6 +177,7 @@ class Resize:
                 elif rule == "flow":
                     v = v * [sx, sy]
                 out[key] = v.astype(img.dtype)
+        _objects(out, lambda xy: xy * [sx, sy], self.width, self.height, taps.nearest)
         if "K" in out:
             out["K"] = np.diag([sx, sy, 1.0]) @ np.asarray(out["K"], np.float64)
         _tracks(out, lambda xy: xy * [sx, sy])

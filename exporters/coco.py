@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pycocotools.mask as mask_utils
 
-from generator.geometry.boxes import amodal_box, mask_box, mesh_outline, part_world_matrices
+from generator.geometry.boxes import amodal_box, mesh_outline, part_world_matrices, tight_boxes
 
 from . import FORMAT_VERSION
 from .frames import frame_names
@@ -79,20 +79,19 @@ class CocoWriter:
         ids = np.unique(instance)
         ids = ids[ids >= 0]
         matrices = part_world_matrices(ctx.parts, ctx.dynamic_objects, frame.object_matrices)
-        for iid, rle in zip(ids.tolist(), encode_masks(instance, ids)):
-            mask = instance == iid
+        tight, counts = tight_boxes(instance, ids)
+        for k, (iid, rle) in enumerate(zip(ids.tolist(), encode_masks(instance, ids))):
             part, row = ctx.parts[iid], ctx.instances[iid]
             m = matrices[iid]
             if iid not in self.outlines:
                 self.outlines[iid] = mesh_outline(part.faces)
             amodal = amodal_box(part.vertices @ m[:3, :3].T + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
                                 ctx.width, ctx.height, self.outlines[iid], near=self.near)
-            tight = mask_box(mask)
             self.annotations.append({
                 "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),
-                "segmentation": rle, "area": int(mask.sum()), "bbox": [float(v) for v in _xywh(tight)], "iscrowd": 0,
+                "segmentation": rle, "area": int(counts[k]), "bbox": _xywh(tight[k].tolist()), "iscrowd": 0,
                 "instance_id": int(iid), "object": row["object"],
-                "amodal_bbox": _xywh(amodal) if amodal is not None else [float(v) for v in _xywh(tight)]})
+                "amodal_bbox": _xywh(amodal if amodal is not None else tight[k].tolist())})
 
     def close(self) -> Path | None:
         ctx = self.context

@@ -345,3 +345,83 @@ def test_tracks_reader_round_trip_with_units(flown, tmp_path):
 
     with pytest.raises(DamagedFileError, match=r"format_version '0.1'.*python -m generator --seeds N --overwrite"):
         TrackReader(tmp_path / "t.h5")
+
+
+# ---- datasets: annotations per frame, and Resize / Crop ------------------------------------------
+def test_sequence_returns_the_annotations_of_each_frame(flown):
+    from datasets.scene import Sequence
+
+    sim, out = flown
+    seq = Sequence(out, sim.labels)
+    coco, boxes = CocoReader(out / "coco.json"), Boxes3DReader(out / "boxes3d.json")
+    for t in range(T):
+        a = seq.annotations(t)
+        instance = seq.read(t, ["instance"]).instance
+        for key, value in coco.frame(t).items():
+            np.testing.assert_array_equal(a["boxes2d"][key], value)
+        for key, value in boxes.frame(t).items():
+            np.testing.assert_array_equal(a["boxes3d"][key], value)
+        for k, iid in enumerate(a["boxes2d"]["instance_id"]):
+            assert tuple(a["boxes2d"]["bbox"][k]) == mask_box(instance == iid)
+    assert seq.annotations(-1)["boxes2d"]["instance_id"].tolist() == coco.frame(T - 1)["instance_id"].tolist()
+
+
+@pytest.mark.parametrize("transform", ["crop", "shrink", "enlarge"])
+def test_resize_and_crop_keep_boxes_the_tight_boxes_of_the_masks(flown, transform):
+    from datasets.scene import Sequence
+    from datasets.transforms import Crop, Resize
+
+    sim, out = flown
+    seq = Sequence(out, sim.labels)
+    op = {"crop": Crop(20, 10, 30, 20), "shrink": Resize(32, 20), "enlarge": Resize(100, 77)}[transform]
+    for t in range(T):
+        f = seq.read(t, ["rgb", "depth", "instance"])
+        a = seq.annotations(t)
+        masks = CocoReader(out / "coco.json").masks(t)
+        sample = {"rgb": f.rgb, "depth": f.depth, "instance": f.instance, "K": f.K} | a
+        new = op(sample)
+        new_masks = op(sample | {"masks": masks})
+        instance = new["instance"]
+        b = new["boxes2d"]
+        ids = b["instance_id"]
+        assert sorted(ids.tolist()) == sorted(set(np.unique(instance).tolist()) - {-1}), "objects without pixels dropped"
+        for k, iid in enumerate(ids):
+            assert tuple(b["bbox"][k]) == mask_box(instance == iid) and b["area"][k] == (instance == iid).sum()
+        # masks follow the ids exactly, and give the same boxes
+        np.testing.assert_array_equal(new_masks["masks"], instance[None] == ids[:, None, None])
+        np.testing.assert_array_equal(new_masks["boxes2d"]["bbox"], b["bbox"])
+        # amodal boxes: moved with the image (as K moves pixel positions) and clipped to it
+        old = dict(zip(a["boxes2d"]["instance_id"].tolist(), a["boxes2d"]["amodal_bbox"]))
+        Kn, Ko = new["K"], f.K
+        h, w = instance.shape
+        for k, iid in enumerate(ids.tolist()):
+            x0, y0, x1, y1 = old[iid]
+            corners = np.array([[x0, y0, 1], [x1, y1, 1]]) @ np.linalg.inv(Ko).T @ Kn.T
+            expected = np.clip(corners[:, :2].ravel(), 0, [w, h, w, h])
+            np.testing.assert_allclose(b["amodal_bbox"][k], expected, atol=1e-9)
+        np.testing.assert_array_equal(new["boxes3d"]["centre"], a["boxes3d"]["centre"])  # world frame: unchanged
+    with pytest.raises(ValueError, match="instance map"):
+        op({"depth": f.depth} | a)
+
+
+def test_frame_dataset_returns_objects_through_a_transform(finished):
+    """The batch job writes coco.json and boxes3d.json per trajectory; FrameDataset returns them
+    (annotations=True) and Resize keeps the visible boxes the tight boxes of the instance ids."""
+    from datasets import FrameDataset, Resize
+    from exporters.manifest import read_manifest
+
+    seed = finished[0] / "seed_000004"
+    files = read_manifest(seed)["files"]
+    assert {"orbit/coco.json", "orbit/boxes3d.json", "spline/coco.json", "spline/boxes3d.json"} <= set(files)
+    plain = FrameDataset(seed)
+    assert "boxes2d" not in plain[0]  # opt-in: their lengths vary by frame
+    data = FrameDataset(seed, keys=("rgb", "instance"), annotations=True, transform=Resize(24, 16))
+    seen = 0
+    for item in (data[0], data[len(data) - 1]):
+        assert item["instance"].shape == (16, 24)
+        b = item["boxes2d"]
+        for k, iid in enumerate(b["instance_id"]):
+            assert tuple(b["bbox"][k]) == mask_box(item["instance"] == iid)
+            seen += 1
+        assert len(item["boxes3d"]["instance"]) >= len(b["instance_id"])
+    assert seen > 0

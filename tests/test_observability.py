@@ -4,7 +4,6 @@ observable-only figures of the evaluation."""
 
 import json
 
-import h5py
 import numpy as np
 import pytest
 
@@ -107,12 +106,10 @@ def test_stored_masks_equal_the_simulators(seed_folder):
     sim = Simulator(seed_folder / "scene" / "site.blend", points_density=0.3, seed=4)  # the tiny run's settings
     mask = sim.observable_points_mask
     assert 0.3 < mask.mean() < 1.0 and sim.frame == sim.frame_range[0]
-    with h5py.File(gt / "scene.h5", "r") as f:
-        stored = f["surface_points/observable"][()]
-        views = f["observability/viewpoints"][()]
+    stored_gt = read_ground_truth(gt)  # the one reader of scene.h5
+    stored, views = stored_gt.surface["observable"], stored_gt.viewpoints
     assert stored.dtype == bool and np.array_equal(stored, mask)
     assert np.array_equal(views, default_viewpoints(sim.spawn_points))
-    assert np.array_equal(read_ground_truth(gt).surface["observable"], mask)
     # the scoring cloud: the same rule on its own samples
     ply = read_ply(gt / "points.ply")
     assert ply.vertex["observable"].dtype == np.uint8
@@ -130,8 +127,7 @@ def test_coverage_reports_the_observable_share(seed_folder):
     r = score_coverage(seed_folder, seed_folder / "orbit" / "trajectory.npz")
     o = r["observable"]
     assert o["available"] and len(o["coverage"]) == len(r["coverage"])
-    with h5py.File(seed_folder / "ground_truth" / "scene.h5", "r") as f:
-        assert o["num_points"] == int(f["surface_points/observable"][()].sum())
+    assert o["num_points"] == int(read_ground_truth(seed_folder).surface["observable"].sum())
     assert 0 < o["final_coverage"] <= 1 and o["auc"] > 0
     assert "observable points" in coverage_table(r)
 

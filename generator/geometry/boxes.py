@@ -134,6 +134,33 @@ def mesh_outline(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return edges, np.unique(faces)
 
 
+def tight_boxes(ids_map: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tight boxes (n, 4) (x0, y0, x1, y1) float64, pixel edges as :func:`mask_box`, and pixel
+    counts (n,) of ``ids_map == ids[k]`` for every k, in one pass over the (H, W) map; an id
+    with no pixel gets count 0 and the box (0, 0, 0, 0)."""
+    ids = np.asarray(ids)
+    n = len(ids)
+    if n == 0:
+        return np.zeros((0, 4)), np.zeros(0, np.int64)
+    order = np.argsort(ids, kind="stable")
+    sorted_ids, flat = ids[order], ids_map.ravel()
+    pos = np.minimum(np.searchsorted(sorted_ids, flat), n - 1)
+    hit = sorted_ids[pos] == flat
+    k = order[pos[hit]]
+    pix = np.flatnonzero(hit)
+    rows, cols = pix // ids_map.shape[1], pix % ids_map.shape[1]
+    x0, y0 = np.full(n, np.iinfo(np.int64).max), np.full(n, np.iinfo(np.int64).max)
+    x1, y1 = np.full(n, -1), np.full(n, -1)
+    np.minimum.at(x0, k, cols)
+    np.minimum.at(y0, k, rows)
+    np.maximum.at(x1, k, cols)
+    np.maximum.at(y1, k, rows)
+    counts = np.bincount(k, minlength=n)
+    boxes = np.column_stack([x0, y0, x1 + 1, y1 + 1]).astype(np.float64)
+    boxes[counts == 0] = 0.0
+    return boxes, counts
+
+
 def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray,
                width: int, height: int, outline: tuple[np.ndarray, np.ndarray] | None = None,
                near: float = NEAR) -> tuple[float, float, float, float] | None:
