@@ -102,16 +102,20 @@ def read_frame_exr(path: str | Path, keys=None) -> dict:
     path = Path(path)
     if not path.is_file():
         raise DamagedFileError(f"{path}: no such file; {REMEDY}")
-    check_exr_structure(path)
+    parts = check_exr_structure(path)
     out: dict = {}
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
+            if parts is not None and len(f.parts) != parts:  # OpenEXR drops a part it cannot decode
+                raise ValueError(f"{parts - len(f.parts)} of {parts} parts failed to decode")
             for k, part in enumerate(f.parts):
                 header = dict(part.header)
                 if k == 0:
                     out["header"] = header
                 ch = {name: c.pixels for name, c in part.channels.items()}
                 for name, m in _modalities_of(header, ch).items():
+                    if not all(c in ch for c in m.channels):  # a part whose chunks failed to decode
+                        raise ValueError(f"part {k} lacks the channels of {name}")
                     if keys is None or name in keys:
                         out[name] = m.decode(ch)
     except (OSError, ValueError, RuntimeError, TypeError) as exc:
@@ -144,10 +148,11 @@ _MULTI_PART = 0x1000
 _MAX_HEADER = 1 << 20
 
 
-def check_exr_structure(path: Path) -> None:
+def check_exr_structure(path: Path) -> int | None:
     """Check a scanline EXR (single- or multi-part: our frames) is whole: the headers parse,
     and the chunk tables point at chunks that lie inside the file, each for the part and
-    scanlines it should hold. Tiled and deep files are left to OpenEXR. Raises DamagedFileError."""
+    scanlines it should hold. Tiled and deep files are left to OpenEXR (returns None); else
+    returns the number of parts. Raises DamagedFileError."""
     size = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(min(size, _MAX_HEADER))
@@ -155,7 +160,7 @@ def check_exr_structure(path: Path) -> None:
             raise damaged(path, "not an OpenEXR file (bad magic number)" if size >= 4 else "empty or truncated file")
         flags = int.from_bytes(head[4:8], "little")
         if flags & _TILED_OR_DEEP:
-            return
+            return None
         multi = bool(flags & _MULTI_PART)
         headers, pos = [], 8
         while True:
@@ -185,6 +190,7 @@ def check_exr_structure(path: Path) -> None:
             for k, offset in enumerate(offsets[start:start + chunks]):
                 _check_chunk(f, path, size, int(offset), p if multi else None, window[1] + k * per, k, chunks)
             start += chunks
+    return len(headers)
 
 
 def _check_chunk(f, path: Path, size: int, offset: int, part: int | None, y_expected: int, k: int, chunks: int) -> None:

@@ -49,7 +49,7 @@ class Modality:
     preview: ``"rgb"``, ``"depth"``, ``"labels"``, ``"ids"``, ``"normal"``, ``"flow"``, a
         callable ``(array, labels) -> (H, W, 3) uint8``, or None (not on the contact sheet).
     compute: for ``source="geometry"``: ``(generator.geometry.pixels.PixelGeometry) -> array``.
-    dtype: numpy type returned by the reader.
+    dtype: numpy type the datasets return (the EXR type; ``rgb``: float32 from its 8-bit PNG).
     """
 
     name: str
@@ -101,12 +101,11 @@ class Modality:
         return {c: np.ascontiguousarray(p, dtype=t) for c, p in zip(self.channels, planes)}
 
     def decode(self, channels: dict[str, np.ndarray]) -> np.ndarray:
-        """The array from its EXR channels (as :meth:`encode` wrote them)."""
+        """The array from its EXR channels, exactly as :meth:`encode` wrote them (the EXR type;
+        ids as int32 with -1)."""
         planes = [np.asarray(channels[c]) for c in self.channels]
         if self.is_ids:
             planes = [np.ascontiguousarray(p, dtype=np.uint32).view(np.int32) for p in planes]
-        else:
-            planes = [p.astype(self.dtype, copy=False) for p in planes]
         return planes[0] if len(planes) == 1 else np.stack(planes, axis=-1)
 
 
