@@ -6,8 +6,8 @@ ours: the top-left pixel's centre is (0.5, 0.5)); keypoints at the exact project
 static surface points visible in that frame; 3D points = static points seen in at least two
 frames, with their tracks, the colour of the rendered pixel where first seen, and their
 reprojection error (COLMAP's: the mean distance in pixels between a point's projection in
-each image of its track and the keypoint there; ~1e-12 px here since the keypoints are exact
-projections). Dynamic points never enter the model.
+each image of its track and the keypoint there; rounding only, ~1e-14 px, since the keypoints
+are exact projections). Dynamic points never enter the model.
 
 :func:`read_colmap_model` reads a model back for scoring, refusing damaged files and
 degenerate cameras.
