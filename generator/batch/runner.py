@@ -28,6 +28,7 @@ class SeedResult:
     summary: dict = field(default_factory=dict)
     seconds: float = 0.0
     attempts: int = 1  # attempts at computing it (more than 1: its worker was lost and the executor retried)
+    node: str = ""  # the cluster node that computed it ('' on this machine)
 
 
 @dataclass(frozen=True)
@@ -167,15 +168,16 @@ def _result(o: Outcome, attempts: int) -> SeedResult:
     message = o.message
     if o.status == "done" and attempts > 1:
         message = f"retried: complete on attempt {attempts}"
-    return SeedResult(o.seed, o.status, message, o.summary, o.seconds, attempts)
+    return SeedResult(o.seed, o.status, message, o.summary, o.seconds, attempts, o.node)
 
 
 def one_line(r: SeedResult) -> str:
+    where = f" on node {r.node}" if r.node else ""
     if r.status == "failed":
-        return f"seed {r.seed}: FAILED after {r.seconds:.0f} s: {r.message}"
+        return f"seed {r.seed}: FAILED after {r.seconds:.0f} s{where}: {r.message}"
     if r.status != "done":
         return f"seed {r.seed}: {r.message}"
     s = r.summary
     return (f"seed {r.seed}: {s.get('frames', 0)} frames, {s.get('points', 0):,} points, "
-            f"{s.get('visible_tracks', 0):,} visible tracks, {r.seconds:.0f} s"
+            f"{s.get('visible_tracks', 0):,} visible tracks, {r.seconds:.0f} s{where}"
             + (f" ({r.message})" if r.message else ""))

@@ -88,6 +88,7 @@ def seed_task(job: SeedJob, progress, retries: int) -> Outcome:
         raise WorkerLost(outcome.message)
     if outcome.lost and attempt > 1:
         outcome.message += f" (attempt {attempt} of {retries + 1})"
+    outcome.node = ray.util.get_node_ip_address()
     ray.get(progress.flush.remote())  # every event of this attempt reaches the driver before the result
     return outcome
 

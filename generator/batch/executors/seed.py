@@ -53,6 +53,7 @@ class Outcome:
     seconds: float = 0.0
     lost: bool = False
     note: str = ""
+    node: str = ""  # where it ran, when not on this machine (the node's address)
 
 
 Emit = Callable[[dict], None]

@@ -1,0 +1,305 @@
+"""The Ray executor on a real two-node Ray cluster on loopback (issue 17): a head node and a
+second node started with the venv's `ray start`, each with one CPU, so two seeds run on
+two nodes at once. No mocks.
+
+The nodes use 127.0.0.2 and 127.0.0.3: Ray replaces 127.0.0.1 and localhost by the
+machine's outward address, and takes any other loopback address as given, so every
+connection stays on loopback. The cluster is stopped in a finally block (SIGTERM to each
+`ray start --block`, which stops its node; SIGKILL to their process groups for anything
+left), and the fixture checks that none of its processes is left."""
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, TINY
+from conftest import run_generator as run
+from exporters.exr import read_frame_exr
+from exporters.manifest import read_manifest, verify_manifest
+
+RAY = Path(sys.executable).parent / "ray"
+HEAD_IP, NODE_IP = "127.0.0.2", "127.0.0.3"
+SEEDS = ["4", "7"]  # seed 4 as in the shared local run (conftest.finished), seed 7 run locally here
+ARGS = ["--colmap-text", "--executor", "ray", "--cpus-per-seed", "1"]
+
+
+def _env(**extra):
+    return {k: v for k, v in os.environ.items() if k not in ("OCIO", "RAY_ADDRESS")} | extra
+
+
+def _free_ports(n: int) -> list[int]:
+    socks = [socket.socket() for _ in range(n)]
+    for s in socks:
+        s.bind(("127.0.0.1", 0))
+    ports = [s.getsockname()[1] for s in socks]
+    for s in socks:
+        s.close()
+    return ports
+
+
+def _node_ports() -> list[str]:
+    listen, grpc, metrics, runtime_env = _free_ports(4)
+    return [f"--dashboard-agent-listen-port={listen}", f"--dashboard-agent-grpc-port={grpc}",
+            f"--metrics-export-port={metrics}", f"--runtime-env-agent-port={runtime_env}"]
+
+
+def _processes_of(pgids: set[int], marker: str) -> list[int]:
+    """Live processes in the process groups ``pgids`` or whose command line names ``marker``."""
+    found = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()
+        state, pgid = fields[0], int(fields[2])
+        if state != "Z" and (pgid in pgids or marker in cmd):
+            found.append(int(d.name))
+    return found
+
+
+def _start(args: list[str], log: Path) -> subprocess.Popen:
+    return subprocess.Popen([str(RAY), "start", "--block", "--disable-usage-stats", "--num-cpus=1",
+                             "--object-store-memory=80000000", *args], cwd=ROOT, env=_env(),
+                            stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _wait_for_nodes(address: str, count: int, deadline: float) -> None:
+    probe = "import ray, sys; ray.init(address=sys.argv[1], logging_level='ERROR'); " \
+            "print(sum(n['Alive'] for n in ray.nodes()))"
+    while time.time() < deadline:
+        r = subprocess.run([sys.executable, "-c", probe, address], capture_output=True, text=True, env=_env(),
+                           timeout=60)
+        if r.stdout.strip() == str(count):
+            return
+        time.sleep(1.0)
+    raise TimeoutError(f"the Ray cluster at {address} did not reach {count} nodes")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """HOST:PORT of a head node and a second node, both on loopback, one CPU each."""
+    temp = Path(tempfile.mkdtemp(prefix="bray", dir="/tmp"))  # short: Ray's socket paths have a length limit
+    gcs, dashboard = _free_ports(2)
+    address = f"{HEAD_IP}:{gcs}"
+    procs = []
+    try:
+        procs.append(_start(["--head", f"--node-ip-address={HEAD_IP}", f"--port={gcs}", "--include-dashboard=false",
+                             f"--dashboard-port={dashboard}", f"--temp-dir={temp}", *_node_ports()], temp / "head.log"))
+        _wait_for_nodes(address, 1, time.time() + 60)
+        procs.append(_start([f"--address={address}", f"--node-ip-address={NODE_IP}", *_node_ports()],
+                            temp / "node.log"))
+        _wait_for_nodes(address, 2, time.time() + 60)
+        yield address
+    finally:
+        pgids = {p.pid for p in procs}
+        for p in reversed(procs):  # `ray start --block` stops its node's processes on SIGTERM
+            p.terminate()
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                pass
+        if _processes_of(pgids, str(temp)):  # what did not stop
+            for pgid in pgids:
+                try:
+                    os.killpg(pgid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+            time.sleep(1.0)
+        for p in procs:
+            p.wait(timeout=10)
+        left = _processes_of(pgids, str(temp))
+        subprocess.run(["rm", "-rf", str(temp)])
+        assert not left, f"Ray processes left behind: {left}"
+
+
+@pytest.fixture(scope="module")
+def local_seed7(tmp_path_factory):
+    out = tmp_path_factory.mktemp("local7")
+    r = run(out, "--seeds", "7", "--colmap-text")
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out
+
+
+def _same_as_local(ray_out: Path, local: dict[str, Path]) -> None:
+    """Every file of each seed equals the local run's (by the manifests' sha256), except
+    Blender's log (timings) and site.blend (Blender writes its own bytes; the scene is
+    site.json, and the frames); EXRs whose bytes differ must hold equal arrays."""
+    for seed, local_out in local.items():
+        name = f"seed_{int(seed):06d}"
+        a, b = read_manifest(local_out / name), read_manifest(ray_out / name)
+        assert a["config"] == b["config"] and a["summary"] == b["summary"] and a["versions"] == b["versions"]
+        assert a["files"].keys() == b["files"].keys()
+        for rel in a["files"]:
+            if rel.endswith((".log", ".blend")) or a["files"][rel]["sha256"] == b["files"][rel]["sha256"]:
+                continue
+            assert rel.endswith(".exr"), f"seed {seed}: {rel} differs between the local and the Ray run"
+            fa, fb = read_frame_exr(local_out / name / rel), read_frame_exr(ray_out / name / rel)
+            assert fa.keys() == fb.keys()
+            for key in fa.keys() - {"header"}:
+                np.testing.assert_array_equal(fa[key], fb[key])
+
+
+def _alive(pid: int) -> bool:
+    """A process that still runs (a zombie waiting for its parent to collect it does not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rindex(")") + 2] != "Z"
+
+
+def _worker_pids(out: Path) -> dict[int, tuple[int, int]]:
+    """{seed: (pid of its worker process, pid of that process's parent)} for workers writing into ``out``."""
+    found = {}
+    for d in Path("/proc").iterdir():
+        try:
+            argv = (d / "cmdline").read_bytes().decode(errors="replace").split("\0")
+            ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        # python -m generator.batch.worker CONFIG SEED FOLDER
+        if argv[1:3] == ["-m", "generator.batch.worker"] and len(argv) > 5 and argv[5].startswith(f"{out}/"):
+            found[int(argv[4])] = (int(d.name), ppid)
+    return found
+
+
+def test_two_seeds_on_two_nodes_equal_a_local_run(cluster, finished, local_seed7, tmp_path):
+    r = run(tmp_path, "--seeds", *SEEDS, *ARGS, "--ray-address", cluster, env_extra={"RAY_ADDRESS": ""})
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    lines = {s: [l for l in r.stdout.splitlines() if l.startswith(f"seed {s}: 6 frames")] for s in SEEDS}
+    assert all(len(v) == 1 for v in lines.values()), r.stdout
+    assert {l[0].rsplit(" on node ", 1)[1] for l in lines.values()} == {HEAD_IP, NODE_IP}  # one seed on each node
+    for s in SEEDS:  # the bars were fed by the tasks' events, frame by frame
+        assert re.search(rf"seed {s} frames: +\d+%\|[^|]*\| [1-6]/6", r.stderr), r.stderr
+        assert verify_manifest(tmp_path / f"seed_{int(s):06d}") == []
+    assert not list(tmp_path.glob(".*"))  # no partial folder, lock or probe file left
+    _same_as_local(tmp_path, {"4": finished[0], "7": local_seed7})
+
+
+def test_lost_workers_are_retried_and_equal_a_local_run(cluster, finished, local_seed7, tmp_path):
+    """Seed 4's worker process is killed (SIGKILL) mid-run, and seed 7's Ray worker process
+    (the task running it; its worker process dies with it): both are run again, their
+    partial folders removed first, and both end complete and identical to a local run."""
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", *SEEDS, *ARGS,
+            "--ray-address", cluster]
+    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    killed: dict[int, int] = {}
+    try:
+        deadline = time.time() + 90
+        while len(killed) < 2 and time.time() < deadline and proc.poll() is None:
+            for seed, (pid, parent) in _worker_pids(tmp_path).items():
+                partial = tmp_path / f".seed_{seed:06d}.partial"
+                if seed in killed or not (partial / "scene" / "site.json").exists():
+                    continue
+                assert not (partial / "manifest.json").exists()  # mid-run: the seed is not written yet
+                os.kill(pid if seed == 4 else parent, signal.SIGKILL)
+                killed[seed] = pid
+            time.sleep(0.05)
+        out, err = proc.communicate(timeout=150)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert sorted(killed) == [4, 7], f"the workers were not caught mid-run: {killed}"
+    assert proc.returncode == 0, out[-2000:] + err[-3000:]
+    assert "seed 4: attempt 1 lost (worker process killed by SIGKILL" in out
+    assert "seed 7: attempt 1 lost (its Ray worker process or node died)" in out
+    assert out.count("retrying: attempt 2 of 3, its partial folder removed first") == 2
+    table = out[out.index("status"):]
+    assert table.count("retried: complete on attempt 2") == 2
+    for s in SEEDS:
+        assert verify_manifest(tmp_path / f"seed_{int(s):06d}") == []
+    assert not list(tmp_path.glob(".*"))
+    assert not _worker_pids(tmp_path) and not any(_alive(pid) for pid in killed.values())
+    _same_as_local(tmp_path, {"4": finished[0], "7": local_seed7})
+
+
+def test_seed_lost_on_every_attempt_fails_for_good(cluster, tmp_path):
+    """--retries 0: a lost worker is not run again; the seed is failed (exit 1), its partial
+    folder kept and never marked complete; the other seed completes."""
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "3", "7", "--colmap-text",
+            "--executor", "ray", "--cpus-per-seed", "1", "--retries", "0", "--ray-address", cluster]
+    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 90
+        while time.time() < deadline and proc.poll() is None:
+            pid = _worker_pids(tmp_path).get(3, (None,))[0]
+            if pid and (tmp_path / ".seed_000003.partial" / "scene" / "site.json").exists():
+                os.kill(pid, signal.SIGKILL)
+                break
+            time.sleep(0.05)
+        out, err = proc.communicate(timeout=150)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, out[-2000:] + err[-3000:]
+    assert "seed 3: FAILED" in out and "worker process killed by SIGKILL" in out and "retrying" not in out
+    assert not (tmp_path / "seed_000003").exists() and (tmp_path / ".seed_000003.partial").is_dir()
+    assert verify_manifest(tmp_path / "seed_000007") == []
+    table = out[out.index("status"):].splitlines()
+    assert any(l.split()[:2] == ["3", "failed"] for l in table) and any(l.split()[:2] == ["7", "done"] for l in table)
+
+
+def test_interrupt_cancels_the_tasks_and_cleans_up(cluster, tmp_path):
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "11", "12",
+            "--executor", "ray", "--cpus-per-seed", "1", "--ray-address", cluster]
+    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 90
+    while len(_worker_pids(tmp_path)) < 2 and time.time() < deadline:
+        time.sleep(0.05)
+    workers = _worker_pids(tmp_path)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert len(workers) == 2
+    assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    time.sleep(0.5)
+    assert not any(_alive(pid) for pid, _ in workers.values())  # the seeds' processes are gone
+    assert list(tmp_path.iterdir()) == []  # partial folders and locks removed
+
+
+def test_unreachable_address_is_one_line_and_exit_2(tmp_path):
+    [port] = _free_ports(1)
+    for address, says in ((f"{HEAD_IP}:{port}", "no Ray cluster answers at"), ("nowhere", "HOST:PORT"),
+                          ("ray://127.0.0.2:10001", "Ray Client addresses")):
+        t0 = time.time()
+        r = run(tmp_path, "--seeds", "1", "--executor", "ray", "--ray-address", address, timeout=60)
+        assert time.time() - t0 < 30
+        assert r.returncode == 2 and says in r.stderr and "Traceback" not in r.stderr, r.stderr
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_node_check_of_out_says_what_is_wrong(tmp_path):
+    """What each node runs at start (in this process here): it must see the driver's file
+    with its contents, and write beside it."""
+    from generator.batch.executors.ray_cluster import probe_out
+
+    token = tmp_path / ".ray-probe-1-abc"
+    assert "does not see the file the driver wrote" in probe_out(str(token), "s3cret")
+    token.write_text("other")
+    assert "sees another file" in probe_out(str(token), "s3cret")
+    token.write_text("s3cret")
+    assert probe_out(str(token), "s3cret") == "" and [p.name for p in tmp_path.iterdir()] == [token.name]
+
+
+def test_ray_options_need_the_ray_executor(tmp_path):
+    for args, says in ((["--ray-address", "127.0.0.2:1"], "--ray-address applies to --executor ray"),
+                       (["--retries", "1"], "--retries applies to --executor ray"),
+                       (["--executor", "ray", "--workers", "2"], "--workers applies to the local executor"),
+                       (["--executor", "ray", "--cpus-per-seed", "0"], "expected a positive number")):
+        r = run(tmp_path, "--seeds", "1", *args)
+        assert r.returncode == 2 and says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert list(tmp_path.iterdir()) == []
