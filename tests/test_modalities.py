@@ -286,3 +286,30 @@ def test_toy_modality_reaches_exr_datasets_and_contact_sheet(flown):
     sheet = Image.open(folder / "contact_sheet.png")
     columns = [n for n in MODALITIES if MODALITIES[n].preview is not None]
     assert TOY in columns and sheet.size[0] >= len(columns) * (W + 4)
+
+
+def test_outputs_choose_what_is_written(flown, tmp_path):
+    sim, seq, _ = flown
+    traj = Trajectory(seq.poses[:2].copy(), seq.timestamps[:2].copy(), "test")
+    sim.last_render_timings = {}
+    fly(sim, traj, tmp_path / "few", seed=0, outputs=("normal", "depth"))
+    assert sim.last_render_timings  # depth needs the Blender render ...
+    few = Sequence(tmp_path / "few", sim.labels)
+    assert few.modalities == ("depth", "normal")  # ... and the table's order is kept
+    assert not list((tmp_path / "few").glob("rgb_*.png")) and not list((tmp_path / "few").glob("label_*.png"))
+    np.testing.assert_array_equal(few[1].normal, seq[1].normal)
+    with pytest.raises(KeyError, match="no modality flow"):
+        few.read(0, ["flow"])
+    sim.last_render_timings = {}
+    geometry_only = sim.render_outputs(("normal", "flow"), traj.poses, np.stack([sim.dynamic_object_matrices()] * 2), 1)
+    assert not sim.last_render_timings and set(geometry_only.outputs) == {"normal", "flow"}  # no Blender render
+    with pytest.raises(ValueError, match="unknown output colour: choose from rgb"):
+        fly(sim, traj, tmp_path / "bad", seed=0, outputs=("colour",))
+
+
+def test_outputs_option_is_checked_up_front(tmp_path):
+    from conftest import run_generator
+
+    r = run_generator(tmp_path, "--seeds", "1", "--outputs", "depth,colour")
+    assert r.returncode == 2 and "unknown output colour" in r.stderr and "Traceback" not in r.stderr
+    assert not list(tmp_path.iterdir())
