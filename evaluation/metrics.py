@@ -1,9 +1,10 @@
 """Reconstruction metrics (definitions: the Metrics section of DESIGN.md, restated in
 docs/evaluation.md). Distances in metres, Euclidean unless stated; thresholds strict (<).
 
-Everything is derived from one exact k-nearest-neighbour query per direction (open3d's
-nanoflann k-d tree, float64, all cores, against the distinct points only), plus bounded L1
-queries for the points those neighbours do not settle (the paper-compatibility block).
+Everything is derived from one exact nearest-neighbour query per direction (open3d's
+nanoflann k-d tree, float64, all cores, against the distinct points only), plus one L1
+query per direction bounded by the L1 distance to the Euclidean nearest neighbour (the
+paper-compatibility block).
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 
 
-# Euclidean nearest neighbours kept per point for the Manhattan figures. k = 2 or 4 settles
-# 50-95% of the points without an L1 query (see nearest_manhattan), but on the benchmark's
-# data the larger k-NN queries cost more than they save (docs/benchmarks.md).
-CANDIDATES = 1
+# Leaf size of the L1 k-d tree: larger leaves than scipy's default (16) cost fewer node visits
+# for points far from the target cloud (measured: 15% less time for the Manhattan figures).
+L1_LEAF_SIZE = 64
+# Points queried together share one L1 distance bound (scipy takes one per call): points are
+# grouped by their own bound within this factor.
+L1_BOUND_RATIO = 1.05
 
 
 def unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -39,7 +42,27 @@ def unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     return points[first], first
 
 
-def knn(source: np.ndarray, target: np.ndarray, k: int = 1) -> np.ndarray:
+@dataclass(frozen=True)
+class Target:
+    """A target cloud (N, 3) and its distinct rows (``first``: their indices, None when all
+    rows are distinct), found once and shared by the Euclidean and the Manhattan queries."""
+
+    points: np.ndarray
+    distinct: np.ndarray
+    first: np.ndarray | None
+
+    @classmethod
+    def of(cls, points: np.ndarray) -> "Target":
+        points = np.asarray(points, np.float64)
+        distinct, first = unique_rows(points)
+        return cls(points, distinct, first)
+
+    def original(self, idx: np.ndarray) -> np.ndarray:
+        """Indices into ``points`` of indices into ``distinct`` (first occurrences)."""
+        return idx if self.first is None else self.first[idx]
+
+
+def knn(source: np.ndarray, target: np.ndarray | Target, k: int = 1) -> np.ndarray:
     """Indices (N, k') into ``target`` of the k' = min(k, distinct targets) Euclidean nearest
     target points of each source point, nearest first, never two equal target points (the
     first occurrence stands for its copies). Exact, in float64 (open3d's nanoflann k-d tree,
@@ -47,47 +70,44 @@ def knn(source: np.ndarray, target: np.ndarray, k: int = 1) -> np.ndarray:
     from generator.geometry.o3d import import_open3d
 
     o3d = import_open3d()
-    distinct, first = unique_rows(target)
-    k = min(k, len(distinct))
-    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(np.ascontiguousarray(distinct, np.float64)))
+    tgt = target if isinstance(target, Target) else Target.of(target)
+    k = min(k, len(tgt.distinct))
+    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(np.ascontiguousarray(tgt.distinct, np.float64)))
     nns.knn_index()
     idx, _ = nns.knn_search(o3d.core.Tensor(np.ascontiguousarray(source, np.float64)), k)
-    idx = idx.numpy().astype(np.int64).reshape(len(source), k)
-    return idx if first is None else first[idx]
+    return tgt.original(idx.numpy().astype(np.int64).reshape(len(source), k))
 
 
-def nearest(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nearest(source: np.ndarray, target: np.ndarray | Target) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean distance (N,) from each source point to its nearest target point and that
     point's index (N,). Exact, in float64 (see :func:`knn`)."""
-    idx = knn(source, target, 1)[:, 0]
+    tgt = target if isinstance(target, Target) else Target.of(target)
+    idx = knn(source, tgt, 1)[:, 0]
     # the distance from the coordinates (not from the squared distance) for exact ties with tau
-    return np.linalg.norm(source - target[idx], axis=1), idx
+    return np.linalg.norm(source - tgt.points[idx], axis=1), idx
 
 
-def nearest_manhattan(source: np.ndarray, target: np.ndarray, candidates: np.ndarray, ratio: float = 1.05) -> np.ndarray:
+def nearest_manhattan(source: np.ndarray, target: np.ndarray | Target, nearest_idx: np.ndarray) -> np.ndarray:
     """Manhattan (L1) distance (N,) from each source point to its L1-nearest target point.
 
-    ``candidates`` (N, k): indices of the k Euclidean nearest targets, nearest first (a
-    single column, the nearest, is enough). B, the smallest L1 distance to a candidate,
-    bounds the answer, and any other target q is at least R (the k-th Euclidean distance)
-    away: |x - q|_1 >= |x - q|_2 >= R. So B is the answer wherever B < R (or every target
-    is a candidate); the other points are queried with upper bound B (scipy's cKDTree, which
-    takes one bound per call: points are grouped by bound, within a factor ``ratio``)."""
-    candidates = np.asarray(candidates, dtype=np.int64).reshape(len(source), -1)
-    bound = np.full(len(source), np.inf)
-    for j in range(candidates.shape[1]):
-        bound = np.minimum(bound, np.abs(source - target[candidates[:, j]]).sum(axis=1))
-    radius = np.linalg.norm(source - target[candidates[:, -1]], axis=1)
-    open_ = np.flatnonzero(~((bound < radius * (1 - 1e-12)) | (bound == 0)))
-    out = bound.copy()
-    if len(open_) == 0:
+    ``nearest_idx`` (N,): the index of each source point's Euclidean nearest target point.
+    B, the L1 distance to it, bounds the answer from above, and every target q is at least
+    R (the Euclidean nearest distance) away: |x - q|_1 >= |x - q|_2 >= R. So B is the answer
+    wherever B <= R (an axis-aligned offset, or 0); the other points are queried in scipy's
+    cKDTree (L1, all cores) with B as the distance bound (one bound per call: points are
+    grouped by bound within a factor ``L1_BOUND_RATIO``)."""
+    source = np.asarray(source, np.float64)
+    tgt = target if isinstance(target, Target) else Target.of(target)
+    offset = source - tgt.points[np.asarray(nearest_idx, dtype=np.int64)]
+    bound = np.abs(offset).sum(axis=1)
+    radius = np.sqrt(np.einsum("ij,ij->i", offset, offset))
+    open_ = np.flatnonzero(bound > radius)
+    out = bound
+    if len(open_) == 0 or len(tgt.distinct) == 1:
         return out
-    distinct, _ = unique_rows(target)
-    if candidates.shape[1] >= len(distinct):
-        return out
-    tree = cKDTree(distinct)
+    tree = cKDTree(tgt.distinct, leafsize=L1_LEAF_SIZE)
     order = open_[np.argsort(bound[open_], kind="stable")]
-    level = np.floor(np.log(bound[order] / bound[order[0]]) / np.log(ratio))
+    level = np.floor(np.log(bound[order] / bound[order[0]]) / np.log(L1_BOUND_RATIO))
     for chunk in np.split(order, np.flatnonzero(np.diff(level)) + 1):
         ub = float(np.nextafter(bound[chunk[-1]], np.inf))
         out[chunk], _ = tree.query(source[chunk], k=1, p=1, distance_upper_bound=ub, workers=-1)
@@ -98,23 +118,21 @@ def nearest_manhattan(source: np.ndarray, target: np.ndarray, candidates: np.nda
 class Neighbours:
     """Nearest neighbours both ways: distances (metres) and indices, prediction -> GT
     (``d_pg``, ``i_pg``, one per predicted point) and GT -> prediction (``d_gp``, ``i_gp``);
-    ``c_pg``, ``c_gp`` (N, k): the k Euclidean nearest, nearest first (for the Manhattan
-    figures; None: the nearest only)."""
+    ``pred`` and ``gt``: the two clouds as :class:`Target` (for the Manhattan figures)."""
 
     d_pg: np.ndarray
     i_pg: np.ndarray
     d_gp: np.ndarray
     i_gp: np.ndarray
-    c_pg: np.ndarray | None = None
-    c_gp: np.ndarray | None = None
+    pred: Target | None = None
+    gt: Target | None = None
 
     @classmethod
-    def compute(cls, pred: np.ndarray, gt: np.ndarray, candidates: int = CANDIDATES) -> "Neighbours":
-        c_pg, c_gp = knn(pred, gt, candidates), knn(gt, pred, candidates)
-        i_pg, i_gp = c_pg[:, 0], c_gp[:, 0]
-        d_pg = np.linalg.norm(pred - gt[i_pg], axis=1)
-        d_gp = np.linalg.norm(gt - pred[i_gp], axis=1)
-        return cls(d_pg, i_pg, d_gp, i_gp, c_pg, c_gp)
+    def compute(cls, pred: np.ndarray, gt: np.ndarray) -> "Neighbours":
+        p, g = Target.of(pred), Target.of(gt)
+        d_pg, i_pg = nearest(p.points, g)
+        d_gp, i_gp = nearest(g.points, p)
+        return cls(d_pg, i_pg, d_gp, i_gp, p, g)
 
 
 def _ratio(num: float, den: float) -> float:
@@ -178,8 +196,8 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
         out["semantic"] = _semantic(np.asarray(pred_labels), np.asarray(gt_labels), d_pg, i_pg, d_gp, i_gp, tau,
                                     class_names)
     if paper_block:
-        l1_pg = nearest_manhattan(pred, gt, nn.c_pg if nn.c_pg is not None else i_pg)
-        l1_gp = nearest_manhattan(gt, pred, nn.c_gp if nn.c_gp is not None else i_gp)
+        l1_pg = nearest_manhattan(pred, nn.gt if nn.gt is not None else gt, i_pg)
+        l1_gp = nearest_manhattan(gt, nn.pred if nn.pred is not None else pred, i_gp)
         out["paper"] = {
             "note": "the paper's code: one direction at a time, Manhattan (L1) norm of the offset to the nearest "
                     "neighbour under that norm; not the symmetric Euclidean Chamfer-L1 above",
