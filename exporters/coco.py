@@ -44,12 +44,30 @@ def category_id(label_id: int) -> int:
 
 
 def encode_masks(instance: np.ndarray, ids: np.ndarray) -> list[dict]:
-    """Compressed RLE (pycocotools) of ``instance == id`` for every id, counts as str."""
+    """Compressed RLE (pycocotools' own bytes, counts as str) of ``instance == id`` for every
+    id, from one pass over the map's runs in column-major order (COCO's pixel order)."""
+    h, w = instance.shape
     if len(ids) == 0:
         return []
-    masks = np.asfortranarray((instance[:, :, None] == np.asarray(ids)[None, None, :]).astype(np.uint8))
-    rles = mask_utils.encode(masks)
-    return [{"size": [int(r["size"][0]), int(r["size"][1])], "counts": r["counts"].decode("ascii")} for r in rles]
+    seq = np.ascontiguousarray(instance.T).ravel()
+    change = np.flatnonzero(seq[1:] != seq[:-1]) + 1
+    starts, ends = np.concatenate([[0], change]), np.concatenate([change, [seq.size]])
+    order = np.argsort(seq[starts], kind="stable")  # runs grouped by id, in pixel order within an id
+    grouped = seq[starts][order]
+    rles = []
+    for iid in np.asarray(ids).tolist():
+        a, b = np.searchsorted(grouped, [iid, iid + 1])
+        s0, e0 = starts[order[a:b]], ends[order[a:b]]
+        if len(s0) == 0:  # not in the map: an empty mask
+            rles.append({"size": [h, w], "counts": [int(seq.size)]})
+            continue
+        counts = np.empty(2 * len(s0) + 1, np.int64)
+        counts[0:-1:2] = s0 - np.concatenate([[0], e0[:-1]])  # background run before each run of the id
+        counts[1::2] = e0 - s0
+        counts[-1] = seq.size - e0[-1]
+        rles.append({"size": [h, w], "counts": (counts if counts[-1] else counts[:-1]).tolist()})
+    compressed = mask_utils.frPyObjects(rles, h, w)
+    return [{"size": [h, w], "counts": r["counts"].decode("ascii")} for r in compressed]
 
 
 def _xywh(box) -> list[float]:

@@ -425,3 +425,18 @@ def test_frame_dataset_returns_objects_through_a_transform(finished):
             seen += 1
         assert len(item["boxes3d"]["instance"]) >= len(b["instance_id"])
     assert seen > 0
+
+
+def test_rle_from_runs_is_pycocotools_own_encoding():
+    from exporters.coco import encode_masks
+
+    rng = np.random.default_rng(4)
+    for trial in range(40):
+        h, w = rng.integers(1, 40, 2)
+        inst = rng.integers(-1, 5, (h, w)) if trial % 2 else np.kron(rng.integers(-1, 4, (5, 5)), np.ones((9, 9), int))[:h, :w]
+        ids = np.unique(inst)
+        ids = ids[ids >= 0]
+        ours = encode_masks(inst, ids)
+        theirs = mask_utils.encode(np.asfortranarray((inst[:, :, None] == ids[None, None]).astype(np.uint8)))
+        assert [r["counts"] for r in ours] == [r["counts"].decode() for r in theirs]
+        assert all(r["size"] == [h, w] for r in ours)

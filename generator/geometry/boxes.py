@@ -75,22 +75,16 @@ def upright_box(points: np.ndarray) -> Box3D:
 
 
 def _hull_2d(xy: np.ndarray) -> np.ndarray:
-    """Vertices of the convex hull of 2D points (Andrew's monotone chain; collinear and
-    repeated points are fine)."""
-    pts = np.unique(xy, axis=0)
-    if len(pts) < 3:
-        return pts
+    """Vertices of the convex hull of 2D points (Qhull; the distinct points themselves when
+    they are too few or collinear, which gives the same rectangles)."""
+    from scipy.spatial import ConvexHull, QhullError
 
-    def chain(points):
-        out: list = []
-        for q in points:
-            while len(out) >= 2 and (out[-1][0] - out[-2][0]) * (q[1] - out[-2][1]) - (out[-1][1] - out[-2][1]) * (q[0] - out[-2][0]) <= 0:
-                out.pop()
-            out.append(q)
-        return out
-
-    lower, upper = chain(pts), chain(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    if len(xy) >= 3:
+        try:
+            return xy[ConvexHull(xy).vertices]
+        except QhullError:  # collinear or repeated points: keep the distinct ones
+            pass
+    return np.unique(xy, axis=0)
 
 
 def _min_area_angle(hull: np.ndarray) -> float:
@@ -128,10 +122,12 @@ def mask_box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
 
 
 def mesh_outline(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unique edges (E, 2), used vertex ids) of a triangle mesh, for :func:`amodal_box`."""
+    """(edges (3F, 2) of every triangle, used vertex ids) of a triangle mesh, for
+    :func:`amodal_box` (shared edges appear twice: cheaper than finding them)."""
     faces = np.asarray(faces, np.int64)
-    edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0)
-    return edges, np.unique(faces)
+    used = np.zeros(int(faces.max(initial=-1)) + 1, bool)
+    used[faces.ravel()] = True
+    return faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), np.flatnonzero(used)
 
 
 def tight_boxes(ids_map: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -177,11 +173,17 @@ def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.nd
     if len(faces) == 0:
         return None
     near = max(float(near), NEAR)
+    edges, used = outline if outline is not None else mesh_outline(faces)
     pc = world_to_camera(np.asarray(vertices, float), world_from_camera)
     h = pc @ np.asarray(K, float).T  # (u z, v z, z): the view is 0 <= u <= W, 0 <= v <= H, z >= near
     planes = np.stack([h[:, 0], width * h[:, 2] - h[:, 0], h[:, 1], height * h[:, 2] - h[:, 1], h[:, 2] - near], 1)
-    edges, used = outline if outline is not None else mesh_outline(faces)
-    found = [_inside(h[used], planes[used])]
+    g = planes[used]
+    if np.all(g >= 0):  # the whole mesh in view (the usual case): the box of its vertices
+        xy = h[used, :2] / h[used, 2:3]
+        return _box(xy, width, height)
+    if np.any(np.all(g < 0, axis=0)):  # entirely beyond one plane of the view
+        return None
+    found = [_inside(h[used], g)]
     ga, gb = planes[edges[:, 0]], planes[edges[:, 1]]
     for k in range(5):
         cross = np.flatnonzero((ga[:, k] < 0) != (gb[:, k] < 0))
@@ -191,11 +193,17 @@ def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.nd
             gp = ga[cross] + t * (gb[cross] - ga[cross])
             gp[:, k] = 0.0
             found.append(_inside(hp, gp))
-    found.append(_near_crossings(pc, faces, K, width, height, near))
-    found.append(_covered_corners(pc, faces, K, width, height, near))
+    gf = planes[faces]  # (F, 3, 5): the planes' values at each triangle's vertices
+    lo, hi = gf.min(axis=1), gf.max(axis=1)
+    cut = faces[(lo[:, 4] < 0) & (hi[:, 4] >= 0)]
+    if len(cut):
+        found.append(_near_crossings(pc, cut, K, width, height, near))
+    found.append(_covered_corners(pc, faces, lo, hi, K, width, height, near))
     xy = np.concatenate(found)
-    if len(xy) == 0:
-        return None
+    return _box(xy, width, height) if len(xy) else None
+
+
+def _box(xy: np.ndarray, width: int, height: int) -> tuple[float, float, float, float]:
     x0, y0 = np.clip(xy.min(axis=0), 0, [width, height])
     x1, y1 = np.clip(xy.max(axis=0), 0, [width, height])
     return float(x0), float(y0), float(x1), float(y1)
@@ -244,15 +252,22 @@ def _near_crossings(pc: np.ndarray, faces: np.ndarray, K: np.ndarray, width: int
     return np.clip(segs, 0, [width, height])
 
 
-def _covered_corners(pc: np.ndarray, faces: np.ndarray, K: np.ndarray, width: int, height: int, near: float) -> np.ndarray:
-    """The image corners whose viewing ray meets a triangle in front of the camera."""
+def _covered_corners(pc: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.ndarray, K: np.ndarray, width: int,
+                     height: int, near: float) -> np.ndarray:
+    """The image corners whose viewing ray meets a triangle at depth >= near. Only triangles
+    straddling both view planes through a corner (``lo``/``hi``: per-triangle minimum and
+    maximum of the plane values) can meet its ray."""
     corners = np.array([[0.0, 0.0], [width, 0.0], [0.0, height], [width, height]])
     kinv = np.linalg.inv(np.asarray(K, float))
-    rays = np.column_stack([corners, np.ones(4)]) @ kinv.T
-    a, b, c = pc[faces[:, 0]], pc[faces[:, 1]], pc[faces[:, 2]]
-    e1, e2 = b - a, c - a
     out = []
-    for corner, d in zip(corners, rays):
+    for corner, (i, j) in zip(corners, ((0, 2), (1, 2), (0, 3), (1, 3))):
+        sel = (lo[:, i] <= 0) & (hi[:, i] >= 0) & (lo[:, j] <= 0) & (hi[:, j] >= 0) & (hi[:, 4] >= 0)
+        if not sel.any():
+            continue
+        f = faces[sel]
+        a, b, c = pc[f[:, 0]], pc[f[:, 1]], pc[f[:, 2]]
+        e1, e2 = b - a, c - a
+        d = kinv @ np.array([corner[0], corner[1], 1.0])
         # Moller-Trumbore from the camera centre (origin of the camera frame)
         p = np.cross(d, e2)
         det = np.einsum("ij,ij->i", e1, p)
