@@ -78,16 +78,18 @@ def classify_instances(parts_a: list, parts_b: list, union_a: np.ndarray, union_
     return status, transform
 
 
-REFINE = 0.1  # metres: Embree distances from the tolerance up to tolerance + REFINE are recomputed in float64
-LONG_TRIANGLE = 1.0  # metres: triangles wider than this are tested against every refined point
+REFINE = 0.1  # metres: Embree distances from the tolerance up to tolerance + REFINE are recomputed
+MAX_EDGE = 2.0  # metres: the recomputation splits longer triangle edges first
 
 
 def surface_distance(points: np.ndarray, parts: list, tolerance: float = POINT_TOLERANCE) -> np.ndarray:
     """(N,) float32 distance in metres from each point to the nearest triangle of ``parts``
-    (placed at their matrices). Embree's float32 closest-point query (open3d) is off by up
-    to a few centimetres on long thin triangles (measured: 2.6 cm on a 43 m x 0.14 m face of a
-    crane jib), always too far, so distances in (tolerance, tolerance + REFINE] are recomputed
-    exactly in float64 (:func:`exact_distance`) before they decide anything."""
+    (placed at their matrices). Embree's float32 closest-point query (open3d) is too far by
+    up to a few centimetres on long thin triangles (measured: 2.6 cm on a 43 m x 0.14 m face
+    of a crane jib), so distances in (tolerance, tolerance + REFINE] are recomputed on the
+    same surface cut into triangles with edges of at most MAX_EDGE metres, where that error
+    is gone (tests/test_phases.py checks the result against float64 point-to-triangle
+    distances)."""
     from ..geometry.raycast import SceneGeometry
 
     points = np.asarray(points, np.float64)
@@ -96,48 +98,36 @@ def surface_distance(points: np.ndarray, parts: list, tolerance: float = POINT_T
     d = np.asarray(SceneGeometry(parts).distance(points), np.float64)
     near = np.flatnonzero((d > tolerance) & (d <= tolerance + REFINE))
     if len(near):
-        d[near] = np.minimum(d[near], exact_distance(points[near], parts, tolerance + REFINE))
+        d[near] = np.minimum(d[near], SceneGeometry(split_long_edges(parts)).distance(points[near]))
     return d.astype(np.float32)
 
 
-def exact_distance(points: np.ndarray, parts: list, reach: float) -> np.ndarray:
-    """(N,) float64 distance from each point to the nearest triangle of ``parts`` when it is
-    within ``reach`` metres (else +inf): plane distance where the foot falls inside the
-    triangle, else the nearest edge."""
-    from scipy.spatial import cKDTree
+def split_long_edges(parts: list, max_edge: float = MAX_EDGE) -> list:
+    """The parts' world triangles as static parts, each triangle bisected at the midpoint of
+    its longest edge until no edge is longer than ``max_edge`` metres (the same surface)."""
+    from ..geometry.parts import MeshPart
 
-    tri = np.concatenate([p.world_vertices()[p.faces] for p in parts if len(p.faces)])
-    lo, hi = tri.min(axis=1) - reach, tri.max(axis=1) + reach
-    long = np.flatnonzero((hi - lo).max(axis=1) - 2 * reach > LONG_TRIANGLE)
-    small = np.setdiff1d(np.arange(len(tri)), long)
-    tree = cKDTree((lo[small] + hi[small]) / 2)
-    radius = float(np.linalg.norm(hi[small] - lo[small], axis=1).max()) / 2 if len(small) else 0.0
-    out = np.full(len(points), np.inf)
-    for i, x in enumerate(points):
-        cand = np.concatenate([small[tree.query_ball_point(x, radius)], long]).astype(np.int64)
-        cand = cand[np.all((lo[cand] <= x) & (x <= hi[cand]), axis=1)]
-        if len(cand):
-            out[i] = _point_triangles(x, tri[cand])
+    out = []
+    for p in parts:
+        if not len(p.faces):
+            continue
+        tri = p.world_vertices()[p.faces]
+        done = []
+        while len(tri):
+            edges = np.stack([np.linalg.norm(tri[:, (i + 1) % 3] - tri[:, i], axis=1) for i in range(3)], axis=1)
+            long = edges.max(axis=1) > max_edge
+            done.append(tri[~long])
+            tri = tri[long]
+            if not len(tri):
+                break
+            i = edges[long].argmax(axis=1)  # split edge (i, i+1) at its midpoint m: (a, m, c) and (m, b, c)
+            rows = np.arange(len(tri))
+            a, b, c = tri[rows, i], tri[rows, (i + 1) % 3], tri[rows, (i + 2) % 3]
+            m = (a + b) / 2
+            tri = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+        tri = np.concatenate(done)
+        out.append(MeshPart(p.name, p.label, tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3)))
     return out
-
-
-def _point_triangles(x: np.ndarray, tri: np.ndarray) -> float:
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    n = np.cross(b - a, c - a)
-    norm = np.linalg.norm(n, axis=1)
-    flat = norm > 0
-    n = n / np.where(flat, norm, 1.0)[:, None]
-    h = np.einsum("ij,ij->i", x - a, n)
-    foot = x - h[:, None] * n
-    inside = flat.copy()
-    for v0, v1 in ((a, b), (b, c), (c, a)):
-        inside &= np.einsum("ij,ij->i", np.cross(v1 - v0, foot - v0), n) >= 0
-    best = np.where(inside, np.abs(h), np.inf)
-    for v0, v1 in ((a, b), (b, c), (c, a)):
-        e = v1 - v0
-        t = np.clip(np.einsum("ij,ij->i", x - v0, e) / np.maximum(np.einsum("ij,ij->i", e, e), 1e-300), 0.0, 1.0)
-        best = np.minimum(best, np.linalg.norm(x - (v0 + t[:, None] * e), axis=1))
-    return float(best.min())
 
 
 def frame_change_mask(depth_a: np.ndarray, union_a: np.ndarray, depth_b: np.ndarray, union_b: np.ndarray,
