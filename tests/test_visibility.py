@@ -10,6 +10,7 @@ from generator import Simulator
 from generator.geometry.camera import project as cam_project
 from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
+from generator.geometry.surface_points import SurfacePoints
 from generator.geometry.visibility import ViewLimits, visible_points
 
 
@@ -158,3 +159,35 @@ def test_tile_ordered_rays_equal_one_ray_per_point_on_a_site(small_site):
         visible += int(fast.sum())
         hidden += int((in_view & ~fast).sum())
     assert visible > 1000 and hidden > 1000  # both answers are exercised
+
+
+def test_blocks_and_reused_answers_equal_one_ray_per_point_while_exploring(small_site):
+    """The Simulator's path (point blocks culled against the frustum, answers reused while the
+    camera turns on the spot, forgotten when it moves or the frame changes) gives exactly the
+    ray-per-point answer along a walk of moves, turns and frame changes."""
+    sim = small_site
+    sim.respawn_camera()
+    rng = np.random.default_rng(5)
+    limits = ViewLimits(sim.clip_start, min(sim.clip_end, sim.max_pcl_depth))
+    turned = visible = 0
+    for step in range(30):
+        action = rng.integers(0, 3)
+        if action == 0:
+            sim.move_camera_forward(1.5)
+        elif action == 1:
+            sim.turn_camera_right(float(rng.choice([-20.0, 20.0])))
+            turned += 1
+        else:
+            sim.set_frame(int(rng.integers(*sim.frame_range)))
+        points, _, vis = sim.compute_point_cloud(update_mask=False)
+        # the reference from public data only: fresh structures, every point, storage order
+        geo = SceneGeometry(sim.scene_parts())
+        sample = sim.surface_sample()
+        ref_points = SurfacePoints.from_arrays(geo.parts, sample["local"], sample["local_normals"], sample["part"],
+                                               sample["labels"])
+        assert np.array_equal(ref_points.world, points)
+        ref = visible_points(geo, ref_points.world, ref_points.world_normals, ref_points.part,
+                             sim.get_world_from_camera(), sim.K, sim.width, sim.height, limits, ray_per_point=True)
+        assert np.array_equal(vis, ref)
+        visible += int(vis.sum())
+    assert turned > 3 and visible > 1000

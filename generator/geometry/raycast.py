@@ -57,6 +57,8 @@ class SceneGeometry:
         self._dynamic_dirty = True
         # visibility.PointBlocks of the last point set tested against this scene (a cache)
         self.point_blocks = None
+        # incremented whenever a dynamic part moves (for caches of query answers)
+        self.version = 0
         self.local_bounds = np.array(
             [
                 [p.vertices.min(axis=0), p.vertices.max(axis=0)] if len(p.vertices) else [[np.inf] * 3, [-np.inf] * 3]
@@ -78,6 +80,7 @@ class SceneGeometry:
                 changed = True
         if changed:
             self._dynamic_dirty = True
+            self.version += 1
 
     def _scenes(self, closed_only: bool = False):
         if self._dynamic_dirty:

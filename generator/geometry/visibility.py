@@ -93,6 +93,14 @@ def visible_points(
     ok &= (v >= 0) & (v < height * z)
     idx = np.flatnonzero(ok)  # into sub
     in_view = len(idx)
+    reused = np.zeros(0, dtype=np.int64)
+    if cand is not None:
+        # rules 3 and 4 depend on the camera centre, not on its orientation: answers found
+        # earlier from this centre (same geometry state) are reused (1 visible, 2 hidden)
+        answers = blocks.answers(centre, geometry.version, normals is not None)
+        known = answers[cand[idx]]
+        reused = idx[known == 1]
+        idx = idx[known == 0]
 
     culled = 0
     if normals is not None and part_index is not None and len(idx):
@@ -106,6 +114,8 @@ def visible_points(
             facing_away = facing[:, 0] * x[idx] + facing[:, 1] * y[idx] + facing[:, 2] * z[idx] > 0
             drop = cullable_part[sub_part[idx]] & facing_away
             culled = int(drop.sum())
+            if cand is not None:
+                answers[cand[idx[drop]]] = 2
             idx = idx[~drop]
 
     if len(idx) > 1 and not ray_per_point and cand is None:
@@ -116,7 +126,12 @@ def visible_points(
     rays = len(idx)
     mask = np.zeros(n, dtype=bool)
     seen = idx[~blocked]
-    mask[seen if cand is None else blocks.order[cand[seen]]] = True
+    if cand is None:
+        mask[seen] = True
+    else:
+        answers[cand[idx]] = np.where(blocked, 2, 1).astype(np.int8)
+        mask[blocks.order[cand[seen]]] = True
+        mask[blocks.order[cand[reused]]] = True
     if stats is not None:
         stats.tested, stats.in_view, stats.culled_backfacing = n, in_view, culled
         stats.rays, stats.visible = rays, int(mask.sum())
@@ -150,6 +165,7 @@ class PointBlocks:
         self.sizes = np.diff(np.r_[self.starts, n])
         self.part_index, self.part = part_index, np.asarray(part_index)[self.order]
         self.points = self.normals = None
+        self._answers, self._answers_key = None, None
         self.set_points(points, None)
 
     @classmethod
@@ -173,6 +189,17 @@ class PointBlocks:
             self.centre, self.half = (lo + hi) / 2, (hi - lo) / 2
         self.sorted_normals = None if normals is None else normals[self.order]
         self.points, self.normals = points, normals
+        self._answers_key = None
+
+    def answers(self, centre: np.ndarray, version: int, with_normals: bool) -> np.ndarray:
+        """Per position in block order, rules 3 and 4 from ``centre`` as found so far (0
+        unknown, 1 visible, 2 hidden); forgotten when the centre, the geometry's state
+        (``version``), the points, their normals or the use of normals change."""
+        key = (tuple(np.asarray(centre, np.float64).tolist()), version, with_normals)
+        if key != self._answers_key:
+            self._answers = np.zeros(len(self.order), dtype=np.int8)
+            self._answers_key = key
+        return self._answers
 
     def gather(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """Points, normals (or None) and part indices at ``positions`` of the block order."""
