@@ -28,21 +28,21 @@ from datasets import FrameDataset  # noqa: E402
 def plain(paths: list[str]) -> float:
     total = 0.0
     for p in paths:
-        with OpenEXR.File(p, separate_channels=True) as f:
-            ch = f.channels()
-            rgb = np.stack([ch[c].pixels for c in "RGB"], axis=-1)
-            depth, label = ch["Z"].pixels, ch["label"].pixels.view(np.int32)
+        with OpenEXR.File(p, separate_channels=True) as f:  # format 0.5: one part per component type
+            parts = {part.name(): part.channels for part in f.parts}
+            rgb = np.stack([parts["colour"][c].pixels for c in "RGB"], axis=-1)
+            depth, label = parts["data"]["Z"].pixels, parts["ids"]["label"].pixels.view(np.int32)
         total += float(rgb[0, 0, 0]) + float(depth[0, 0]) + float(label[0, 0])
     return total
 
 
 def loader(args: tuple[str, list[int]]) -> float:
     folder, indices = args
-    ds = FrameDataset(folder, keys=("rgb", "depth", "label"))
+    ds = FrameDataset(folder, keys=("rgb_linear", "depth", "label"))
     total = 0.0
     for i in indices:
         s = ds[i]
-        total += float(s["rgb"][0, 0, 0]) + float(s["depth"][0, 0]) + float(s["label"][0, 0])
+        total += float(s["rgb_linear"][0, 0, 0]) + float(s["depth"][0, 0]) + float(s["label"][0, 0])
     return total
 
 
@@ -65,7 +65,7 @@ def main() -> None:
                         "--frames", str(args.frames), "--trajectory", "orbit", "--scoring-density", "1"],
                        check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
         folder = out / "seed_000000"
-    ds = FrameDataset(folder, keys=("rgb", "depth", "label"))
+    ds = FrameDataset(folder, keys=("rgb_linear", "depth", "label"))
     n = len(ds)
     paths = [str(ds.scenes[0][kind].exr_path(i)) for _, kind, i in ds.index]
     all_idx = list(range(n)) * args.repeat
@@ -80,7 +80,7 @@ def main() -> None:
         best_plain = min(timed(fn_plain) for _ in range(3))
         best_ours = min(timed(fn_ours) for _ in range(3))
         rows.append((label, len(all_idx) / best_plain, len(all_idx) / best_ours, best_ours / best_plain - 1))
-    print(f"{n} frames of {ds[0]['rgb'].shape[1]}x{ds[0]['rgb'].shape[0]}, read {args.repeat} times, best of 3")
+    print(f"{n} frames of {ds[0]['rgb_linear'].shape[1]}x{ds[0]['rgb_linear'].shape[0]}, read {args.repeat} times, best of 3")
     print("| setting | plain OpenEXR loop | FrameDataset | loader overhead |")
     print("|---|---|---|---|")
     for label, a, b, over in rows:
