@@ -10,6 +10,7 @@ from pathlib import Path
 from ..batch.config import MAX_FRAMES, MAX_SEED
 from ..cli_args import OneLineParser, int_at_least
 from .site import LAYOUTS, PRESETS
+from .timeline import MAX_STAGES
 
 
 def main(argv=None) -> int:
@@ -24,16 +25,23 @@ def main(argv=None) -> int:
     p.add_argument("--phase", type=float, help="share of the planned floors built, 0 to 1 (default: random per building)")
     p.add_argument("--frames", type=int_at_least(2, "frames", MAX_FRAMES),
                    help=f"animation length in frames at 10 fps, 2 to {MAX_FRAMES} (default: 250)")
+    p.add_argument("--stages", type=int_at_least(1, "stages", MAX_STAGES), default=1,
+                   help=f"stages of the site's timeline, 1 to {MAX_STAGES} (default: 1; docs/phases.md)")
+    p.add_argument("--stage", type=int_at_least(0, "stage", MAX_STAGES - 1), default=0,
+                   help="which stage of the timeline to build, 0 to stages-1 (default: 0)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
     if os.path.lexists(args.out) and not args.out.is_dir():
         p.error(f"--out {args.out} exists and is not a folder; name a folder")
+    if args.stage >= args.stages:
+        p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}
     from . import build_site
 
     t0 = time.perf_counter()
     try:
-        result = build_site(args.seed, args.preset, args.out, preview=not args.no_preview, **overrides)
+        result = build_site(args.seed, args.preset, args.out, preview=not args.no_preview, stage=args.stage,
+                            stages=args.stages, **overrides)
     except (ValueError, TypeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
