@@ -32,8 +32,13 @@ SEEDS = ["4", "7"]  # seed 4 as in the shared local run (conftest.finished), see
 ARGS = ["--colmap-text", "--executor", "ray", "--cpus-per-seed", "1"]
 
 
+# the cluster, and every run joining it, without Ray's token authentication (a token left in
+# ~/.ray by another Ray would otherwise be required by the nodes and not sent by the runs)
+RAY_ENV = {"RAY_AUTH_MODE": "disabled", "RAY_ADDRESS": ""}
+
+
 def _env(**extra):
-    return {k: v for k, v in os.environ.items() if k not in ("OCIO", "RAY_ADDRESS")} | extra
+    return {k: v for k, v in os.environ.items() if k != "OCIO"} | RAY_ENV | extra
 
 
 def _free_ports(n: int) -> list[int]:
@@ -177,7 +182,7 @@ def _worker_pids(out: Path) -> dict[int, tuple[int, int]]:
 
 
 def test_two_seeds_on_two_nodes_equal_a_local_run(cluster, finished, local_seed7, tmp_path):
-    r = run(tmp_path, "--seeds", *SEEDS, *ARGS, "--ray-address", cluster, env_extra={"RAY_ADDRESS": ""})
+    r = run(tmp_path, "--seeds", *SEEDS, *ARGS, "--ray-address", cluster, env_extra=RAY_ENV)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
     lines = {s: [l for l in r.stdout.splitlines() if l.startswith(f"seed {s}: 6 frames")] for s in SEEDS}
     assert all(len(v) == 1 for v in lines.values()), r.stdout
@@ -193,9 +198,9 @@ def test_lost_workers_are_retried_and_equal_a_local_run(cluster, finished, local
     """Seed 4's worker process is killed (SIGKILL) mid-run, and seed 7's Ray worker process
     (the task running it; its worker process dies with it): both are run again, their
     partial folders removed first, and both end complete and identical to a local run."""
-    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", *SEEDS, *ARGS,
-            "--ray-address", cluster]
-    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", *SEEDS, *ARGS]
+    proc = subprocess.Popen(args, cwd=ROOT, env=_env(RAY_ADDRESS=cluster),  # the cluster named by RAY_ADDRESS
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     killed: dict[int, int] = {}
     try:
         deadline = time.time() + 90
@@ -269,12 +274,29 @@ def test_interrupt_cancels_the_tasks_and_cleans_up(cluster, tmp_path):
     assert list(tmp_path.iterdir()) == []  # partial folders and locks removed
 
 
+def test_without_an_address_a_local_ray_is_started_and_stopped(finished, tmp_path):
+    """No --ray-address and no RAY_ADDRESS: the run starts a Ray of its own (here in a
+    temporary folder of its own, RAY_TMPDIR), computes the seed as a local run does, and
+    stops that Ray when it ends."""
+    temp = Path(tempfile.mkdtemp(prefix="bray", dir="/tmp"))
+    try:
+        r = run(tmp_path, "--seeds", "4", "--colmap-text", "--executor", "ray", timeout=240,
+                env_extra=RAY_ENV | {"RAY_TMPDIR": str(temp)})
+        assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+        assert "seed 4: 6 frames" in r.stdout and list(temp.iterdir())  # the Ray it started lived in temp
+        _same_as_local(tmp_path, {"4": finished[0]})
+        time.sleep(1.0)
+        assert not _processes_of(set(), str(temp)), "the run left its Ray running"
+    finally:
+        subprocess.run(["rm", "-rf", str(temp)])
+
+
 def test_unreachable_address_is_one_line_and_exit_2(tmp_path):
     [port] = _free_ports(1)
     for address, says in ((f"{HEAD_IP}:{port}", "no Ray cluster answers at"), ("nowhere", "HOST:PORT"),
                           ("ray://127.0.0.2:10001", "Ray Client addresses")):
         t0 = time.time()
-        r = run(tmp_path, "--seeds", "1", "--executor", "ray", "--ray-address", address, timeout=60)
+        r = run(tmp_path, "--seeds", "1", "--executor", "ray", "--ray-address", address, timeout=60, env_extra=RAY_ENV)
         assert time.time() - t0 < 30
         assert r.returncode == 2 and says in r.stderr and "Traceback" not in r.stderr, r.stderr
         lines = r.stderr.strip().splitlines()

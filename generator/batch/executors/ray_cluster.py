@@ -235,6 +235,7 @@ def _connect(address: str | None) -> str:
         except OSError as exc:
             raise ExecutorError(f"no Ray cluster answers at {address} ({exc.strerror or exc}): start one with "
                                 "`ray start --head`, or leave out --ray-address (and RAY_ADDRESS) to start a local Ray")
+    os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "error")  # Ray's C++ warnings would fill the terminal
     kwargs: dict = {"logging_level": logging.ERROR, "log_to_driver": False}
     if address in (None, "local"):
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # a Ray of our own reports nowhere
@@ -254,7 +255,8 @@ def _connect(address: str | None) -> str:
 
 def _give_up(address) -> None:
     print(f"error: the Ray cluster at {address} did not answer within {INIT_TIMEOUT_S:.0f} s; check the address "
-          "(`ray status` on the head node)", file=sys.stderr, flush=True)
+          "(`ray status` on the head node), and if the cluster uses token authentication, set RAY_AUTH_MODE=token "
+          "(docs/scale.md)", file=sys.stderr, flush=True)
     os._exit(2)
 
 
