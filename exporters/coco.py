@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pycocotools.mask as mask_utils
 
-from generator.geometry.boxes import amodal_box, mesh_outline, part_world_matrices, tight_boxes
+from generator.geometry.boxes import amodal_box, part_world_matrices, tight_boxes, used_vertices
 
 from . import FORMAT_VERSION
 from .frames import frame_names
@@ -84,7 +84,7 @@ class CocoWriter:
         self.path = Path(context.folder) / FILE_NAME
         self.images: list[dict] = []
         self.annotations: list[dict] = []
-        self.outlines: dict[int, tuple] = {}  # instance id -> mesh_outline, computed on first sight
+        self.used: dict[int, np.ndarray] = {}  # instance id -> used_vertices, computed on first sight
         self.near = float(getattr(context, "clip", (0.0, None))[0])  # the camera's clip start, metres
 
     def add_frame(self, frame: FrameRecord) -> None:
@@ -101,10 +101,10 @@ class CocoWriter:
         for k, (iid, rle) in enumerate(zip(ids.tolist(), encode_masks(instance, ids))):
             part, row = ctx.parts[iid], ctx.instances[iid]
             m = matrices[iid]
-            if iid not in self.outlines:
-                self.outlines[iid] = mesh_outline(part.faces)
+            if iid not in self.used:
+                self.used[iid] = used_vertices(part.faces)
             amodal = amodal_box(part.vertices @ m[:3, :3].T + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
-                                ctx.width, ctx.height, self.outlines[iid], near=self.near)
+                                ctx.width, ctx.height, self.used[iid], near=self.near)
             self.annotations.append({
                 "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),
                 "segmentation": rle, "area": int(counts[k]), "bbox": _xywh(tight[k].tolist()), "iscrowd": 0,

@@ -121,13 +121,12 @@ def mask_box(mask: np.ndarray) -> tuple[int, int, int, int] | None:
     return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
 
 
-def mesh_outline(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(edges (3F, 2) of every triangle, used vertex ids) of a triangle mesh, for
-    :func:`amodal_box` (shared edges appear twice: cheaper than finding them)."""
+def used_vertices(faces: np.ndarray) -> np.ndarray:
+    """Sorted ids of the vertices that some triangle uses (for :func:`amodal_box`)."""
     faces = np.asarray(faces, np.int64)
     used = np.zeros(int(faces.max(initial=-1)) + 1, bool)
     used[faces.ravel()] = True
-    return faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), np.flatnonzero(used)
+    return np.flatnonzero(used)
 
 
 def tight_boxes(ids_map: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -158,7 +157,7 @@ def tight_boxes(ids_map: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray,
-               width: int, height: int, outline: tuple[np.ndarray, np.ndarray] | None = None,
+               width: int, height: int, used: np.ndarray | None = None,
                near: float = NEAR) -> tuple[float, float, float, float] | None:
     """Box (x0, y0, x1, y1) pixels of the projection of the triangles (world ``vertices``
     (V, 3), ``faces`` (F, 3)) clipped to the view: the part of each triangle in front of
@@ -167,38 +166,42 @@ def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.nd
     polygons' corners are the triangle vertices inside the view, the crossings of triangle
     edges with the view's five bounding planes, the crossings of the triangles' cuts by the
     near plane with the image border, and the image corners a triangle covers.
-    None when no triangle reaches the view. Occlusion is ignored (amodal). ``outline``:
-    :func:`mesh_outline` of ``faces``, when the caller keeps it between calls."""
+    None when no triangle reaches the view. Occlusion is ignored (amodal). ``used``:
+    :func:`used_vertices` of ``faces``, when the caller keeps it between calls. Only the
+    triangles that straddle a plane of the view are clipped (vertex outcodes pick them)."""
     faces = np.asarray(faces, np.int64)
     if len(faces) == 0:
         return None
     near = max(float(near), NEAR)
-    edges, used = outline if outline is not None else mesh_outline(faces)
+    used = used_vertices(faces) if used is None else used
     pc = world_to_camera(np.asarray(vertices, float), world_from_camera)
     h = pc @ np.asarray(K, float).T  # (u z, v z, z): the view is 0 <= u <= W, 0 <= v <= H, z >= near
     planes = np.stack([h[:, 0], width * h[:, 2] - h[:, 0], h[:, 1], height * h[:, 2] - h[:, 1], h[:, 2] - near], 1)
-    g = planes[used]
-    if np.all(g >= 0):  # the whole mesh in view (the usual case): the box of its vertices
-        xy = h[used, :2] / h[used, 2:3]
-        return _box(xy, width, height)
-    if np.any(np.all(g < 0, axis=0)):  # entirely beyond one plane of the view
-        return None
-    found = [_inside(h[used], g)]
-    ga, gb = planes[edges[:, 0]], planes[edges[:, 1]]
-    for k in range(5):
-        cross = np.flatnonzero((ga[:, k] < 0) != (gb[:, k] < 0))
-        if len(cross):
-            t = (ga[cross, k] / (ga[cross, k] - gb[cross, k]))[:, None]
-            hp = h[edges[cross, 0]] + t * (h[edges[cross, 1]] - h[edges[cross, 0]])
-            gp = ga[cross] + t * (gb[cross] - ga[cross])
-            gp[:, k] = 0.0
-            found.append(_inside(hp, gp))
-    gf = planes[faces]  # (F, 3, 5): the planes' values at each triangle's vertices
-    lo, hi = gf.min(axis=1), gf.max(axis=1)
-    cut = faces[(lo[:, 4] < 0) & (hi[:, 4] >= 0)]
-    if len(cut):
-        found.append(_near_crossings(pc, cut, K, width, height, near))
-    found.append(_covered_corners(pc, faces, lo, hi, K, width, height, near))
+    codes = (planes < 0).astype(np.uint8) @ np.array([1, 2, 4, 8, 16], np.uint8)  # the view planes each vertex is beyond
+    inside = used[codes[used] == 0]
+    if len(inside) == len(used):  # the whole mesh in view (the usual case): the box of its vertices
+        return _box(h[inside, :2] / h[inside, 2:3], width, height)
+    fc = codes[faces]
+    straddle = faces[((fc[:, 0] | fc[:, 1] | fc[:, 2]) != 0) & ((fc[:, 0] & fc[:, 1] & fc[:, 2]) == 0)]
+    # faces wholly in view add only their vertices; faces wholly beyond one plane add nothing
+    found = [h[inside, :2] / h[inside, 2:3]]
+    if len(straddle):
+        edges = straddle[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        ga, gb = planes[edges[:, 0]], planes[edges[:, 1]]
+        for k in range(5):
+            cross = np.flatnonzero((ga[:, k] < 0) != (gb[:, k] < 0))
+            if len(cross):
+                t = (ga[cross, k] / (ga[cross, k] - gb[cross, k]))[:, None]
+                hp = h[edges[cross, 0]] + t * (h[edges[cross, 1]] - h[edges[cross, 0]])
+                gp = ga[cross] + t * (gb[cross] - ga[cross])
+                gp[:, k] = 0.0
+                found.append(_inside(hp, gp))
+        gf = planes[straddle]  # (n, 3, 5): the planes' values at each triangle's vertices
+        lo, hi = gf.min(axis=1), gf.max(axis=1)
+        cut = straddle[(lo[:, 4] < 0) & (hi[:, 4] >= 0)]
+        if len(cut):
+            found.append(_near_crossings(pc, cut, K, width, height, near))
+        found.append(_covered_corners(pc, straddle, lo, hi, K, width, height, near))
     xy = np.concatenate(found)
     return _box(xy, width, height) if len(xy) else None
 
