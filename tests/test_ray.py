@@ -1,17 +1,10 @@
 """The Ray executor on a real two-node Ray cluster on loopback (issue 17): a head node and a
-second node started with the venv's `ray start`, each with one CPU, so two seeds run on
-two nodes at once. No mocks.
-
-The nodes use 127.0.0.2 and 127.0.0.3: Ray replaces 127.0.0.1 and localhost by the
-machine's outward address, and takes any other loopback address as given, so every
-connection stays on loopback. The cluster is stopped in a finally block (SIGTERM to each
-`ray start --block`, which stops its node; SIGKILL to their process groups for anything
-left), and the fixture checks that none of its processes is left."""
+second node started with the venv's `ray start` (tests/loopback_ray.py: 127.0.0.2 and
+127.0.0.3), each with one CPU, so two seeds run on two nodes at once. No mocks."""
 
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -23,111 +16,21 @@ import pytest
 
 from conftest import ROOT, TINY
 from conftest import run_generator as run
+from loopback_ray import RAY_ENV, env, free_ports, loopback_cluster, node_ip, processes_of
 from exporters.exr import read_frame_exr
 from exporters.manifest import read_manifest, verify_manifest
 
-RAY = Path(sys.executable).parent / "ray"
-HEAD_IP, NODE_IP = "127.0.0.2", "127.0.0.3"
+HEAD_IP, NODE_IP = node_ip(0), node_ip(1)
 SEEDS = ["4", "7"]  # seed 4 as in the shared local run (conftest.finished), seed 7 run locally here
 ARGS = ["--colmap-text", "--executor", "ray", "--cpus-per-seed", "1"]
 
 
-# the cluster, and every run joining it, without Ray's token authentication (a token left in
-# ~/.ray by another Ray would otherwise be required by the nodes and not sent by the runs)
-RAY_ENV = {"RAY_AUTH_MODE": "disabled", "RAY_ADDRESS": ""}
-
-
-def _env(**extra):
-    return {k: v for k, v in os.environ.items() if k != "OCIO"} | RAY_ENV | extra
-
-
-def _free_ports(n: int) -> list[int]:
-    socks = [socket.socket() for _ in range(n)]
-    for s in socks:
-        s.bind(("127.0.0.1", 0))
-    ports = [s.getsockname()[1] for s in socks]
-    for s in socks:
-        s.close()
-    return ports
-
-
-def _node_ports() -> list[str]:
-    listen, grpc, metrics, runtime_env = _free_ports(4)
-    return [f"--dashboard-agent-listen-port={listen}", f"--dashboard-agent-grpc-port={grpc}",
-            f"--metrics-export-port={metrics}", f"--runtime-env-agent-port={runtime_env}"]
-
-
-def _processes_of(pgids: set[int], marker: str) -> list[int]:
-    """Live processes in the process groups ``pgids`` or whose command line names ``marker``."""
-    found = []
-    for d in Path("/proc").iterdir():
-        if not d.name.isdigit():
-            continue
-        try:
-            stat = (d / "stat").read_text()
-            cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-        except OSError:
-            continue
-        fields = stat[stat.rindex(")") + 2:].split()
-        state, pgid = fields[0], int(fields[2])
-        if state != "Z" and (pgid in pgids or marker in cmd):
-            found.append(int(d.name))
-    return found
-
-
-def _start(args: list[str], log: Path) -> subprocess.Popen:
-    return subprocess.Popen([str(RAY), "start", "--block", "--disable-usage-stats", "--num-cpus=1",
-                             "--object-store-memory=80000000", *args], cwd=ROOT, env=_env(),
-                            stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True)
-
-
-def _wait_for_nodes(address: str, count: int, deadline: float) -> None:
-    probe = "import ray, sys; ray.init(address=sys.argv[1], logging_level='ERROR'); " \
-            "print(sum(n['Alive'] for n in ray.nodes()))"
-    while time.time() < deadline:
-        r = subprocess.run([sys.executable, "-c", probe, address], capture_output=True, text=True, env=_env(),
-                           timeout=60)
-        if r.stdout.strip() == str(count):
-            return
-        time.sleep(1.0)
-    raise TimeoutError(f"the Ray cluster at {address} did not reach {count} nodes")
-
-
 @pytest.fixture(scope="module")
 def cluster():
-    """HOST:PORT of a head node and a second node, both on loopback, one CPU each."""
-    temp = Path(tempfile.mkdtemp(prefix="bray", dir="/tmp"))  # short: Ray's socket paths have a length limit
-    gcs, dashboard = _free_ports(2)
-    address = f"{HEAD_IP}:{gcs}"
-    procs = []
-    try:
-        procs.append(_start(["--head", f"--node-ip-address={HEAD_IP}", f"--port={gcs}", "--include-dashboard=false",
-                             f"--dashboard-port={dashboard}", f"--temp-dir={temp}", *_node_ports()], temp / "head.log"))
-        _wait_for_nodes(address, 1, time.time() + 60)
-        procs.append(_start([f"--address={address}", f"--node-ip-address={NODE_IP}", *_node_ports()],
-                            temp / "node.log"))
-        _wait_for_nodes(address, 2, time.time() + 60)
+    """HOST:PORT of a head node and a second node, both on loopback, one CPU each; stopped
+    (and checked that none of its processes is left) in a finally block."""
+    with loopback_cluster(nodes=2, cpus=1) as address:
         yield address
-    finally:
-        pgids = {p.pid for p in procs}
-        for p in reversed(procs):  # `ray start --block` stops its node's processes on SIGTERM
-            p.terminate()
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                pass
-        if _processes_of(pgids, str(temp)):  # what did not stop
-            for pgid in pgids:
-                try:
-                    os.killpg(pgid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-            time.sleep(1.0)
-        for p in procs:
-            p.wait(timeout=10)
-        left = _processes_of(pgids, str(temp))
-        subprocess.run(["rm", "-rf", str(temp)])
-        assert not left, f"Ray processes left behind: {left}"
 
 
 @pytest.fixture(scope="module")
@@ -199,7 +102,7 @@ def test_lost_workers_are_retried_and_equal_a_local_run(cluster, finished, local
     (the task running it; its worker process dies with it): both are run again, their
     partial folders removed first, and both end complete and identical to a local run."""
     args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", *SEEDS, *ARGS]
-    proc = subprocess.Popen(args, cwd=ROOT, env=_env(RAY_ADDRESS=cluster),  # the cluster named by RAY_ADDRESS
+    proc = subprocess.Popen(args, cwd=ROOT, env=env(RAY_ADDRESS=cluster),  # the cluster named by RAY_ADDRESS
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     killed: dict[int, int] = {}
     try:
@@ -236,7 +139,7 @@ def test_seed_lost_on_every_attempt_fails_for_good(cluster, tmp_path):
     folder kept and never marked complete; the other seed completes."""
     args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "3", "7", "--colmap-text",
             "--executor", "ray", "--cpus-per-seed", "1", "--retries", "0", "--ray-address", cluster]
-    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(args, cwd=ROOT, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 90
         while time.time() < deadline and proc.poll() is None:
@@ -260,7 +163,7 @@ def test_seed_lost_on_every_attempt_fails_for_good(cluster, tmp_path):
 def test_interrupt_cancels_the_tasks_and_cleans_up(cluster, tmp_path):
     args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "11", "12",
             "--executor", "ray", "--cpus-per-seed", "1", "--ray-address", cluster]
-    proc = subprocess.Popen(args, cwd=ROOT, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(args, cwd=ROOT, env=env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 90
     while len(_worker_pids(tmp_path)) < 2 and time.time() < deadline:
         time.sleep(0.05)
@@ -286,13 +189,13 @@ def test_without_an_address_a_local_ray_is_started_and_stopped(finished, tmp_pat
         assert "seed 4: 6 frames" in r.stdout and list(temp.iterdir())  # the Ray it started lived in temp
         _same_as_local(tmp_path, {"4": finished[0]})
         time.sleep(1.0)
-        assert not _processes_of(set(), str(temp)), "the run left its Ray running"
+        assert not processes_of(set(), str(temp)), "the run left its Ray running"
     finally:
         subprocess.run(["rm", "-rf", str(temp)])
 
 
 def test_unreachable_address_is_one_line_and_exit_2(tmp_path):
-    [port] = _free_ports(1)
+    [port] = free_ports(1)
     for address, says in ((f"{HEAD_IP}:{port}", "no Ray cluster answers at"), ("nowhere", "HOST:PORT"),
                           ("ray://127.0.0.2:10001", "Ray Client addresses")):
         t0 = time.time()
