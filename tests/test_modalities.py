@@ -209,7 +209,7 @@ class _Resized:
         self.depth, self.instance = sample["depth"], sample["instance"]
 
 
-def test_frame_exr_opens_in_imageio_and_opencv(flown):
+def test_frame_exr_opens_in_imageio_opencv_and_openimageio(flown):
     import OpenEXR
 
     _, seq, folder = flown
@@ -232,6 +232,20 @@ def test_frame_exr_opens_in_imageio_and_opencv(flown):
     import cv2
 
     np.testing.assert_array_equal(cv2.imread(str(path), cv2.IMREAD_UNCHANGED)[..., ::-1], linear)
+    import OpenImageIO as oiio  # every part, as a subimage
+
+    inp = oiio.ImageInput.open(str(path))
+    try:
+        seen = {}
+        while inp.seek_subimage(len(seen), 0):
+            spec = inp.spec()
+            seen[spec.getattribute("name")] = list(spec.channelnames)
+        assert {k: sorted(v) for k, v in seen.items()} == parts
+        inp.seek_subimage(list(seen).index("ids"), 0)
+        ids = inp.read_image(oiio.UINT32)
+        np.testing.assert_array_equal(ids[..., seen["ids"].index("label")].view(np.int32), frame.label)
+    finally:
+        inp.close()
     # 16-bit id PNGs: id + 1, 0 = none
     for name in ("label", "instance"):
         png = np.asarray(Image.open(folder / f"{name}_000001.png"))
