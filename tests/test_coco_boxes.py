@@ -440,3 +440,21 @@ def test_rle_from_runs_is_pycocotools_own_encoding():
         theirs = mask_utils.encode(np.asfortranarray((inst[:, :, None] == ids[None, None]).astype(np.uint8)))
         assert [r["counts"] for r in ours] == [r["counts"].decode() for r in theirs]
         assert all(r["size"] == [h, w] for r in ours)
+
+
+def test_sinks_write_nothing_without_the_instance_modality(tmp_path):
+    from exporters.boxes3d import Boxes3DWriter
+    from exporters.coco import CocoWriter
+    from exporters.sinks import FrameRecord, TrajectoryContext
+    from generator.geometry.parts import MeshPart
+
+    part = MeshPart("Crate", "Crate", np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), np.array([[0, 1, 2]]))
+    ctx = TrajectoryContext(tmp_path, "orbit", 0, np.eye(3), 8, 6, np.eye(4)[None], np.zeros(1), ["Crate"],
+                            [{"id": 0, "object": "Crate", "label": "Crate", "label_id": 0}], [part], [],
+                            {"local": np.zeros((0, 3))}, ("rgb", "depth"))
+    frame = FrameRecord(0, 0.0, np.eye(4), {"rgb": np.zeros((6, 8, 3))}, np.zeros((0, 3)), np.zeros(0, bool),
+                        np.zeros((0, 4, 4)), 0.0)
+    for sink in (CocoWriter(ctx), Boxes3DWriter(ctx)):
+        sink.add_frame(frame)
+        assert sink.close() is None
+    assert not list(tmp_path.iterdir())
