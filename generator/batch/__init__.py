@@ -1,2 +1,3 @@
 """The batch job behind ``python -m generator``: one worker process per seed (worker.py,
-imports bpy) driven by a bpy-free runner (runner.py)."""
+imports bpy), run by an executor (executors/: local processes or Ray tasks; both run
+executors/seed.py) and driven by a bpy-free runner (runner.py)."""
