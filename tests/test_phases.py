@@ -232,3 +232,27 @@ def test_bad_phases_get_one_line_and_exit_2(tmp_path):
 
     with pytest.raises(ValueError, match="stage 3 is outside"):
         plan_site(0, site_params("small"), 3, 3)
+
+
+def test_loaders_pair_frames_with_their_masks(timeline):
+    from datasets import Resize
+    from datasets.change import ChangePairDataset, change_clouds
+
+    seed, changes, _ = timeline
+    pairs = ChangePairDataset(seed)
+    frames = changes.pair(0, 1).masks["orbit"].shape[0]
+    assert len(pairs) == (STAGES - 1) * frames
+    item = pairs[frames + 1]  # pair (1, 2), frame 1
+    assert list(item["stages"]) == [1, 2] and item["index"] == 1
+    assert np.array_equal(item["before"]["pose"], item["after"]["pose"])
+    assert np.array_equal(item["change"], changes.pair(1, 2).masks["orbit"][1])
+    reader = FrameReader(seed / "phase_2" / "orbit")
+    assert np.array_equal(item["after"]["depth"], reader.read(1, ["depth"])["depth"])
+    small = ChangePairDataset(seed, pairs=[1], transform=Resize(24, 16))[0]
+    assert small["change"].shape == small["before"]["depth"].shape == (16, 24)
+    clouds = change_clouds(seed, 0, 1)
+    assert np.array_equal(clouds["after"]["added"], changes.pair(0, 1).points_added)
+    assert [changes.names[u] for u in clouds["before"]["union_instance"][:5]] == \
+        [changes.names[changes.stage_tables[0][i]] for i in clouds["before"]["instance"][:5]]
+    with pytest.raises(ValueError, match="pairs 1 to 2"):
+        ChangePairDataset(seed, pairs=[3])
