@@ -224,8 +224,8 @@ def test_hand_built_scores():
 
 
 def test_bad_phases_get_one_line_and_exit_2(tmp_path):
-    for value in ("0", "17", "x"):
-        r = run_generator(tmp_path, "--seeds", "1", "--phases", value)
+    for args in (["--phases", "0"], ["--phases", "17"], ["--phases", "x"], ["--phases", "2", "--outputs", "rgb,depth"]):
+        r = run_generator(tmp_path, "--seeds", "1", *args)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "phases" in r.stderr, r.stderr
         assert "Traceback" not in r.stderr
     from generator.scene import plan_site, site_params

@@ -53,6 +53,9 @@ class RunConfig:
             raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
         if not (isinstance(self.phases, int) and 1 <= self.phases <= MAX_PHASES):
             raise ValueError(f"phases must be an integer from 1 to {MAX_PHASES}, got {self.phases!r}")
+        if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
+            raise ValueError("--phases needs the outputs depth and instance (the change masks are made from them); "
+                             "add them to --outputs")
         if self.outputs:
             from exporters.modalities import resolve
 

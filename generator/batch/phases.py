@@ -21,9 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-NEEDED_OUTPUTS = ("depth", "instance")  # the change masks are computed from them
-
-
 def phase_folder(folder: Path, k: int) -> Path:
     return Path(folder) / f"phase_{k}"
 
@@ -60,8 +57,6 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     from .config import check_point_budget
     from .fly import fly
 
-    if cfg.outputs and not set(NEEDED_OUTPUTS) <= set(cfg.outputs):
-        raise ValueError(f"--phases needs the outputs {', '.join(NEEDED_OUTPUTS)} (the change masks are made from them)")
     t0 = time.perf_counter()
     K, anim = cfg.phases, max(250, cfg.frames)
     params = site_params(cfg.scene_preset, frames=anim)
