@@ -317,6 +317,12 @@ def test_outputs_choose_what_is_written(flown, tmp_path):
     sim.last_render_timings = {}
     geometry_only = sim.render_outputs(("normal", "flow"), traj.poses, np.stack([sim.dynamic_object_matrices()] * 2), 1)
     assert not sim.last_render_timings and set(geometry_only.outputs) == {"normal", "flow"}  # no Blender render
+    plain = sim.render()  # the paper's tuple, also keyed by modality name
+    rgb, depth, seg = plain
+    assert plain["label"] is seg and plain["depth"] is depth and plain["instance"] is plain.instance
+    assert set(plain.outputs) == {"rgb", "rgb_linear", "depth", "label", "instance"}
+    with pytest.raises(KeyError, match="no 'flow'"):
+        plain["flow"]
     with pytest.raises(ValueError, match="unknown output colour: choose from rgb"):
         fly(sim, traj, tmp_path / "bad", seed=0, outputs=("colour",))
 
