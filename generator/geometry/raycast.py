@@ -59,6 +59,9 @@ class SceneGeometry:
         self.point_blocks = None
         # incremented whenever a dynamic part moves (for caches of query answers)
         self.version = 0
+        self._bounds, self._bounds_version = None, -1
+        # (P,) bool: the part is a closed mesh (a solid)
+        self.closed = np.array([p.closed for p in self.parts], dtype=bool)
         self.local_bounds = np.array(
             [
                 [p.vertices.min(axis=0), p.vertices.max(axis=0)] if len(p.vertices) else [[np.inf] * 3, [-np.inf] * 3]
@@ -98,17 +101,19 @@ class SceneGeometry:
         return [s for s in scenes if s is not None]
 
     def world_bounds(self) -> np.ndarray:
-        """Axis-aligned bounds (P, 2, 3) of every part at the current matrices."""
-        out = np.empty_like(self.local_bounds)
-        for i, p in enumerate(self.parts):
-            if not p.dynamic:
-                out[i] = self.local_bounds[i]
-                continue
-            lo, hi = self.local_bounds[i]
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            w = corners @ p.matrix[:3, :3].T + p.matrix[:3, 3]
-            out[i] = [w.min(axis=0), w.max(axis=0)]
-        return out
+        """Axis-aligned bounds (P, 2, 3) of every part at the current matrices (a new array)."""
+        if self._bounds_version != self.version:
+            out = self.local_bounds.copy()
+            for i in self.dynamic_index:
+                lo, hi = self.local_bounds[i]
+                if not np.all(lo <= hi):
+                    continue  # no vertices
+                m = self.parts[i].matrix
+                # the box of the transformed box: centre moved, half extents through |R|
+                centre, half = m[:3, :3] @ ((lo + hi) / 2) + m[:3, 3], np.abs(m[:3, :3]) @ ((hi - lo) / 2)
+                out[i] = [centre - half, centre + half]
+            self._bounds, self._bounds_version = out, self.version
+        return self._bounds.copy()
 
     # ---- queries ------------------------------------------------------------------------
     def segments_blocked(self, origin: np.ndarray, targets: np.ndarray, stop_short: np.ndarray | float = 0.0) -> np.ndarray:

@@ -26,7 +26,7 @@ from .raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
 TILE = 16
 
 # Points per block of PointBlocks (the unit of the frustum test before any per-point work).
-BLOCK = 256
+BLOCK = 64
 
 
 @dataclass(frozen=True)
@@ -106,8 +106,7 @@ def visible_points(
     if normals is not None and part_index is not None and len(idx):
         bounds = geometry.world_bounds()
         cam_outside = np.any((centre < bounds[:, 0]) | (centre > bounds[:, 1]), axis=1)
-        closed = np.array([p.closed for p in geometry.parts], dtype=bool)
-        cullable_part = closed & cam_outside
+        cullable_part = geometry.closed & cam_outside
         if cullable_part.any():
             # n . (p - c) in camera coordinates: the normals rotated once per call
             facing = sub_normals[idx] @ r
