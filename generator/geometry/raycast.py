@@ -129,13 +129,17 @@ class SceneGeometry:
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origin
         np.multiply(delta, keep[:, None], out=rays[:, 3:], casting="same_kind")
-        blocked = None
-        t_rays = _tensor(rays)
+        blocked = np.zeros(n, dtype=bool)
+        open_ = None  # rays not blocked yet (None: all); each scene tests only those
         for scene in self._scenes():
+            t_rays = _tensor(rays if open_ is None else rays[open_])
             hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().astype(bool, copy=True)
-            blocked = hit if blocked is None else blocked | hit
-        if blocked is None:
-            return np.zeros(n, dtype=bool)
+            if open_ is None:
+                blocked = hit
+                open_ = np.flatnonzero(~hit)
+            else:
+                blocked[open_[hit]] = True
+                open_ = open_[~hit]
         return blocked & (keep > 0)
 
     def distance(self, points: np.ndarray) -> np.ndarray:
