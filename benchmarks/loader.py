@@ -1,6 +1,13 @@
-"""Frames per second read by ``datasets.FrameDataset`` (RGB + depth + labels, 640x480),
-single process and with 2 worker processes, side by side with reading the same EXR files
-with the plain OpenEXR API in a loop.
+"""Frames per second read by ``datasets.FrameDataset`` (640x480) for two key sets, single
+process and with 2 worker processes, side by side with plain loops reading the same files:
+
+- ``linear``: keys rgb_linear + depth + label (what needs the frame EXR);
+- ``segmentation``: keys rgb + label (display colour and ids: both have PNGs of their own).
+
+References: (a) the plain OpenEXR API (``OpenEXR.File``: it decodes every part of the file,
+it has no part selection), plus PIL for the display PNG; (b) the strongest plain loop we
+know: only the parts each key needs, with OpenImageIO (``read_image(subimage, ..., chbegin,
+chend)``; a test dependency) for EXR-only keys and PIL for keys with an exact PNG.
 
 Usage: .venv/bin/python benchmarks/loader.py [--data SEED_FOLDER] [--frames 20] [--repeat 5]
 (without --data, a small site is generated first with python -m generator).
@@ -21,28 +28,59 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 import OpenEXR  # noqa: E402
+import OpenImageIO as oiio  # noqa: E402
+from PIL import Image  # noqa: E402
 
 from datasets import FrameDataset  # noqa: E402
 
+KEY_SETS = {"linear": ("rgb_linear", "depth", "label"), "segmentation": ("rgb", "label")}
 
-def plain(paths: list[str]) -> float:
+
+def plain_openexr(args: tuple[str, list[str]]) -> float:
+    which, paths = args
     total = 0.0
     for p in paths:
         with OpenEXR.File(p, separate_channels=True) as f:  # format 0.5: one part per component type
             parts = {part.name(): part.channels for part in f.parts}
-            rgb = np.stack([parts["colour"][c].pixels for c in "RGB"], axis=-1)
-            depth, label = parts["data"]["Z"].pixels, parts["ids"]["label"].pixels.view(np.int32)
+            label = parts["ids"]["label"].pixels.view(np.int32)
+            if which == "linear":
+                rgb = np.stack([parts["colour"][c].pixels for c in "RGB"], axis=-1)
+                depth = parts["data"]["Z"].pixels
+            else:
+                rgb, depth = _display_rgb(p), label
         total += float(rgb[0, 0, 0]) + float(depth[0, 0]) + float(label[0, 0])
     return total
 
 
-def loader(args: tuple[str, list[int]]) -> float:
-    folder, indices = args
-    ds = FrameDataset(folder, keys=("rgb_linear", "depth", "label"))
+def plain_parts(args: tuple[str, list[str]]) -> float:
+    which, paths = args
+    total = 0.0
+    for p in paths:
+        label = np.asarray(Image.open(p.replace("frame_", "label_").replace(".exr", ".png"))).astype(np.int32) - 1
+        if which == "linear":
+            f = oiio.ImageInput.open(p)
+            rgb = f.read_image(0, 0, 0, 3, "unknown")  # part colour: R, G, B
+            depth = f.read_image(1, 0, 0, 1, "unknown")[..., 0]  # part data: Z is its first channel
+            f.close()
+        else:
+            rgb, depth = _display_rgb(p), label
+        total += float(rgb[0, 0, 0]) + float(depth[0, 0]) + float(label[0, 0])
+    return total
+
+
+def _display_rgb(exr_path: str) -> np.ndarray:
+    """The display PNG as FrameDataset returns it: float32 in [0, 1]."""
+    return np.asarray(Image.open(exr_path.replace("frame_", "rgb_").replace(".exr", ".png"))).astype(np.float32) / 255
+
+
+def loader(args: tuple[str, str, list[int]]) -> float:
+    which, folder, indices = args
+    keys = KEY_SETS[which]
+    ds = FrameDataset(folder, keys=keys)
     total = 0.0
     for i in indices:
         s = ds[i]
-        total += float(s["rgb_linear"][0, 0, 0]) + float(s["depth"][0, 0]) + float(s["label"][0, 0])
+        total += sum(float(s[k].flat[0]) for k in keys)
     return total
 
 
@@ -65,29 +103,34 @@ def main() -> None:
                         "--frames", str(args.frames), "--trajectory", "orbit", "--scoring-density", "1"],
                        check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
         folder = out / "seed_000000"
-    ds = FrameDataset(folder, keys=("rgb_linear", "depth", "label"))
+    ds = FrameDataset(folder, keys=KEY_SETS["linear"])
     n = len(ds)
     paths = [str(ds.scenes[0][kind].exr_path(i)) for _, kind, i in ds.index]
-    all_idx = list(range(n)) * args.repeat
-    all_paths = paths * args.repeat
-    plain(paths), loader((str(folder), list(range(n))))  # warm the page cache
+    all_idx, all_paths = list(range(n)) * args.repeat, paths * args.repeat
     rows = []
-    for label, fn_plain, fn_ours in (
-        ("1 process", lambda: plain(all_paths), lambda: loader((str(folder), all_idx))),
-        ("2 worker processes", lambda: _pool(plain, [all_paths[0::2], all_paths[1::2]]),
-         lambda: _pool(loader, [(str(folder), all_idx[0::2]), (str(folder), all_idx[1::2])])),
-    ):
-        best_plain = min(timed(fn_plain) for _ in range(3))
-        best_ours = min(timed(fn_ours) for _ in range(3))
-        rows.append((label, len(all_idx) / best_plain, len(all_idx) / best_ours, best_ours / best_plain - 1))
-    print(f"{n} frames of {ds[0]['rgb_linear'].shape[1]}x{ds[0]['rgb_linear'].shape[0]}, read {args.repeat} times, best of 3")
-    print("| setting | plain OpenEXR loop | FrameDataset | loader overhead |")
-    print("|---|---|---|---|")
-    for label, a, b, over in rows:
-        print(f"| {label} | {a:.1f} frames/s | {b:.1f} frames/s | {over:+.1%} |")
+    for which in KEY_SETS:
+        jobs = ((plain_openexr, (which, all_paths)), (plain_parts, (which, all_paths)),
+                (loader, (which, str(folder), all_idx)))
+        for fn, job in jobs:
+            fn((*job[:-1], job[-1][:n]))  # warm the page cache
+        for label, split in (("1 process", 1), ("2 worker processes", 2)):
+            best = [min(timed(_run, fn, [(*job[:-1], job[-1][k::split]) for k in range(split)]) for _ in range(3))
+                    for fn, job in jobs]
+            rows.append((which, label, *(len(all_idx) / b for b in best), best[2] / min(best[:2]) - 1))
+    print(f"{n} frames of {ds[0]['rgb_linear'].shape[1]}x{ds[0]['rgb_linear'].shape[0]}, read {args.repeat} times, "
+          "best of 3")
+    print("| keys | setting | plain OpenEXR loop (whole file) | plain loop, needed parts only | FrameDataset | "
+          "loader vs the faster plain loop |")
+    print("|---|---|---|---|---|---|")
+    for which, label, a, b, c, over in rows:
+        print(f"| {' + '.join(KEY_SETS[which])} | {label} | {a:.1f} frames/s | {b:.1f} frames/s | {c:.1f} frames/s "
+              f"| {over:+.1%} time |")
 
 
-def _pool(fn, chunks):
+def _run(fn, chunks):
+    """``fn`` on each chunk: in this process for one chunk, else in one worker process each."""
+    if len(chunks) == 1:
+        return [fn(chunks[0])]
     with mp.get_context("fork").Pool(len(chunks)) as pool:
         return pool.map(fn, chunks)
 

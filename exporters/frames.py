@@ -94,6 +94,13 @@ def describe(m: Modality) -> dict:
             "exr_type": m.exr_type if m.part else None, "dtype": m.dtype, "files": files}
 
 
+def exact_png(name: str) -> bool:
+    """Whether modality ``name``'s first PNG holds exactly its EXR values: ids in a 16-bit PNG
+    (id + 1; the writer refuses ids that do not fit). Display colour (8-bit) is not exact."""
+    pngs = MODALITIES[name].pngs
+    return bool(pngs) and pngs[0][1] == "id16" and MODALITIES[name].is_ids
+
+
 class FrameReader:
     """Reads the frames of one trajectory folder by modality name (``frames.json`` says
     which were written). Damaged or missing files raise DamagedFileError naming them."""
@@ -115,13 +122,19 @@ class FrameReader:
                                    "(register them before reading)")
 
     def read(self, index: int, keys=None) -> dict[str, np.ndarray]:
-        """Modality name -> array of frame ``index`` for ``keys`` (default: all written)."""
+        """Modality name -> array of frame ``index`` for ``keys`` (default: all written).
+
+        The frame EXR is decoded whole (OpenEXR's Python API reads every part), so it is left
+        unopened when every requested modality has a file of its own with the same values:
+        ``rgb`` (its PNG), ``label`` and ``instance`` (their 16-bit PNGs, exact)."""
         keys = self.modalities if keys is None else tuple(keys)
         missing = [k for k in keys if k not in self.modalities]
         if missing:
             raise KeyError(f"{self.folder}: no modality {', '.join(missing)} (written: {', '.join(self.modalities)})")
         out = {}
         in_exr = [k for k in keys if MODALITIES[k].part is not None]
+        if in_exr and all(exact_png(k) for k in in_exr):  # ids only: their PNGs hold the same values,
+            in_exr = []                                   # ~20x cheaper than decoding every EXR part
         if in_exr:
             path = self.folder / frame_names(index)[0]
             if not path.is_file():
@@ -133,7 +146,7 @@ class FrameReader:
                                        f"{', '.join(absent)}); {REMEDY}")
             out |= {k: exr[k] for k in in_exr}
         for k in keys:
-            if MODALITIES[k].part is None:
+            if k not in out:
                 prefix, kind = MODALITIES[k].pngs[0]
                 path = self.folder / png_name(prefix, index)
                 if not path.is_file():
@@ -147,4 +160,4 @@ class FrameReader:
         if bad:
             raise DamagedFileError(f"{self.folder}: frame {index} ({', '.join(bad)}) is not "
                                    f"{self.width}x{self.height} pixels; {REMEDY}")
-        return out
+        return {k: out[k] for k in keys}
