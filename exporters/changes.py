@@ -9,7 +9,8 @@ like ``scene.h5`` (Fletcher-32 on every dataset, 1.10 metadata). Layout:
 - ``instances/name`` (U,) the objects of every stage (union table, sorted names),
   ``instances/label`` (U,) label ids;
 - ``stages/<k>/instance_to_union`` (n_k,) i4: stage k's instance id (frames, points.ply,
-  scene.h5) -> union id;
+  scene.h5) -> union id; the identity for timelines written by ``generator/batch/phases.py``,
+  whose stages share one object table (an object a stage lacks is an empty entry there);
 - ``pairs/<k>`` for k = 1..K-1, the change from stage k-1 to stage k:
   ``status`` (U,) i1 (-1: in neither stage), ``transform`` (U, 4, 4) f8 (stage k-1 world ->
   stage k world for moved objects, identity otherwise),

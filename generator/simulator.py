@@ -55,6 +55,12 @@ class Simulator(PaperAPI):
             its scripts, every object's instances and modifiers are realised anyway.
         filter_object_names: objects (by name) that get no surface points, no label and
             no collisions (they still render), as the paper's evaluation branch.
+        instance_names: a fixed object table (unique names): instance id = index in it, in
+            every output. It must hold every object of the scene; a name the scene lacks is
+            an empty object (no triangles, no points, never seen) whose label is still in
+            ``labels``. A timeline's stages share one table (generator/batch/phases.py), so
+            instance and label ids do not change between stages.
+            None (default): the scene's objects, sorted.
         verbose: print what was found (points, labels) to stderr.
 
     The paper's names (``n_points``, ``camera_matrix``, ``set_camera_from_next_camera``...)
@@ -73,6 +79,7 @@ class Simulator(PaperAPI):
         *,
         geometry_nodes_objects=("Generator",),
         filter_object_names=(),
+        instance_names=None,
         verbose: bool = False,
     ):
         self.points_density = check_number("points_density", points_density, low=0, low_open=True)
@@ -106,6 +113,9 @@ class Simulator(PaperAPI):
         self._parts, self._bindings = _without_objects(extracted.parts, extracted.bindings, self.filter_object_names)
         if not self._parts:
             raise SceneError(f"{self.blend_file}: filter_object_names leaves no mesh objects")
+        if instance_names is not None:
+            self._parts, self._bindings = _on_instance_table(
+                self._parts, self._bindings, _check_names("instance_names", instance_names), self.blend_file)
         self.labels: list[str] = _label_table({p.label for p in self._parts})
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
@@ -478,6 +488,22 @@ def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ..
     new_index = {old: new for new, old in enumerate(keep)}
     kept = [replace(b, part=new_index[b.part]) for b in bindings if b.part in new_index]
     return [parts[i] for i in keep], kept
+
+
+def _on_instance_table(parts: list[MeshPart], bindings: list, names: tuple[str, ...], blend: Path):
+    """Parts ordered as ``names`` (an empty static part for a name the scene lacks) and the
+    dynamic bindings renumbered."""
+    if len(set(names)) != len(names):
+        raise ValueError("instance_names has repeated names; give each object once")
+    index = {n: i for i, n in enumerate(names)}
+    missing = [p.name for p in parts if p.name not in index]
+    if missing:
+        raise ValueError(f"instance_names lacks {len(missing)} object(s) of {blend}, e.g. {missing[0]!r}; "
+                         "give every object of the scene")
+    table = [MeshPart(n, label_of(n), np.zeros((0, 3)), np.zeros((0, 3), np.int64)) for n in names]
+    for p in parts:
+        table[index[p.name]] = p
+    return table, [replace(b, part=index[parts[b.part].name]) for b in bindings]
 
 
 def _label_table(present: set[str]) -> list[str]:

@@ -51,8 +51,9 @@ def test_unchanged_instances_are_identical_with_stable_ids(timeline):
         # the union table maps each stage's instance ids by object name
         assert [changes.names[u] for u in ta] == [p.name for p in a.parts]
         assert [changes.names[u] for u in tb] == [p.name for p in b.parts]
-        pa = {p.name: (i, p) for i, p in enumerate(a.parts)}
-        pb = {p.name: (i, p) for i, p in enumerate(b.parts)}
+        # the objects each stage has (the others are empty entries of the shared object table)
+        pa = {p.name: (i, p) for i, p in enumerate(a.parts) if len(p.faces)}
+        pb = {p.name: (i, p) for i, p in enumerate(b.parts) if len(p.faces)}
         ca, cb = read_ply(seed / f"phase_{k - 1}/ground_truth/points.ply"), read_ply(seed / f"phase_{k}/ground_truth/points.ply")
         for u, code in enumerate(pair.status):
             if code < 0:
@@ -81,6 +82,46 @@ def test_unchanged_instances_are_identical_with_stable_ids(timeline):
             if name.startswith(("Fence.", "Ground.")):
                 assert STATUS[pair.status[u]] == "unchanged", name
     assert {"unchanged", "added", "removed", "moved", "grown"} <= seen  # the timeline exercises every kind
+
+
+def test_instance_ids_are_the_same_in_every_stage(timeline):
+    """One object table for the whole timeline: an object's instance id is its index in it in
+    every stage's instance maps, tracks.h5 point table and coco.json; objects a stage lacks
+    are empty entries (no triangles, no points, never seen)."""
+    from exporters.coco import CocoReader
+    from exporters.tracks import TrackReader
+
+    seed, changes, gts = timeline
+    names = [p.name for p in gts[0].parts]
+    assert names == sorted(names) and names == changes.names
+    for k, gt in enumerate(gts):
+        assert [p.name for p in gt.parts] == names
+        assert np.array_equal(changes.stage_tables[k], np.arange(len(names)))
+    present = [{i for i, p in enumerate(gt.parts) if len(p.faces)} for gt in gts]
+    assert any(len(s) < len(names) for s in present)  # some stage lacks some object
+    tracks = [TrackReader(seed / f"phase_{k}/orbit/tracks.h5").points for k in range(STAGES)]
+    cocos = [CocoReader(seed / f"phase_{k}/orbit/coco.json") for k in range(STAGES)]
+    frames = [FrameReader(seed / f"phase_{k}/orbit") for k in range(STAGES)]
+    for k in range(STAGES):
+        assert set(np.unique(tracks[k]["instance"]).tolist()) <= present[k]  # no point on an absent object
+        for t in range(frames[k].frames):
+            seen = np.unique(frames[k].read(t, ["instance"])["instance"])
+            assert set(seen[seen >= 0].tolist()) <= present[k]  # an absent object is never seen
+            for ann in cocos[k].annotations(t):  # coco.json names each id by the same table
+                assert names[ann["instance_id"]] == ann["object"]
+    maps = [[frames[k].read(t, ["instance"])["instance"] for t in range(frames[k].frames)] for k in range(STAGES)]
+    checked = 0
+    for k in range(1, STAGES):
+        pair = changes.pair(k - 1, k)
+        for i in np.flatnonzero(pair.status == STATUS.index("unchanged")):
+            a, b = tracks[k - 1], tracks[k]
+            ma, mb = a["instance"] == i, b["instance"] == i
+            # the same tracked points under the same id (sampling is seeded by name)
+            assert np.array_equal(a["local"][ma], b["local"][mb]), names[i]
+            checked += int(ma.sum() > 0)
+            for t, (ia, ib) in enumerate(zip(maps[k - 1], maps[k])):  # same pose: unchanged pixels keep the id
+                assert np.all(ib[(ia == i) & ~pair.masks["orbit"][t]] == i), names[i]
+    assert checked > 0
 
 
 def _dense_surface(parts, density: float, rng) -> np.ndarray:

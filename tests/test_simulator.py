@@ -71,6 +71,39 @@ def test_evaluated_modifiers_instances_and_render_visibility(tmp_path):
     assert np.any(pallet_pts[:, 0] > 13)  # the second instance is there too
 
 
+def test_fixed_instance_table_keeps_ids_and_adds_empty_objects(walls):
+    """instance_names (a timeline's shared object table): id = index in the table everywhere;
+    a name the scene lacks is an empty object: no points, never seen."""
+    plain = Simulator(walls, points_density=5)
+    pose = plain.get_world_from_camera()
+    names = sorted(plain.object_names + ["Absent.0001", "Crate.000"])
+    geo_plain = plain.render_geometry(normals=False)
+    seen_plain, seg_plain = geo_plain.instance, geo_plain.seg
+    pts_plain, inst_plain = plain.point_positions.copy(), plain.point_instances
+    sim = Simulator(walls, points_density=5, instance_names=names)
+    assert sim.object_names == names and [r["object"] for r in sim.instance_table] == names
+    assert sim.labels == ["Absent", "Crate", "Ground", "Wall"]  # labels of the whole table: the same in every stage
+    absent = [names.index("Absent.0001"), names.index("Crate.000")]
+    inst = sim.point_instances
+    assert not np.isin(inst, absent).any()
+    # every object keeps its points (sampling is seeded by name), now under its table id
+    as_names = lambda table, ids: np.array(table, dtype=object)[ids]  # noqa: E731
+    assert np.array_equal(as_names(names, inst), as_names(plain.object_names, inst_plain))
+    assert np.array_equal(sim.point_positions, pts_plain)
+    sim.set_world_from_camera(pose)
+    geo = sim.render_geometry(normals=False)
+    seen = geo.instance
+    hit = seen >= 0
+    assert hit.any() and np.array_equal(hit, seen_plain >= 0)
+    assert np.array_equal(as_names(names, seen[hit]), as_names(plain.object_names, seen_plain[hit]))
+    assert np.array_equal(np.array(sim.labels)[geo.seg[hit]], np.array(plain.labels)[seg_plain[hit]])
+    assert not np.isin(seen, absent).any()
+    with pytest.raises(ValueError, match="instance_names lacks"):
+        Simulator(walls, instance_names=["Crate", "Ground", "Wall"])
+    with pytest.raises(ValueError, match="instance_names has repeated"):
+        Simulator(walls, instance_names=names + ["Wall"])
+
+
 # ---- motion -------------------------------------------------------------------------------
 def _make_linear(obj):
     from bpy_extras import anim_utils

@@ -61,17 +61,18 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     K, anim = cfg.phases, max(250, cfg.frames)
     params = site_params(cfg.scene_preset, frames=anim)
 
-    def simulator(blend):
+    def simulator(blend, instance_names=None):
         return Simulator(blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
-                         render_preset=cfg.render_preset)
+                         render_preset=cfg.render_preset, instance_names=instance_names)
 
-    blends, geometries = [], []
+    blends, geometries, names = [], [], set()
     for k in range(K):  # build every stage; keep its geometry for planning the trajectories
         site = build_site(seed, cfg.scene_preset, phase_folder(folder, k) / "scene", frames=anim, stage=k, stages=K)
         blends.append(site.blend)
         sim = simulator(site.blend)
         check_point_budget(cfg, sim.num_points)
         geometries.append(SceneGeometry(sim.scene_parts()))
+        names.update(sim.object_names)
         if k == 0:
             spawn, start, radius = sim.spawn_points, sim.respawn_camera(), sim.collision_radius
     checker = AllStages(geometries, radius)
@@ -84,11 +85,12 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     trajectories = {kind: _plan(kind, checker, free, start, seed, cfg.frames) for kind in cfg.trajectories}
     emit(event="start", frames=K * cfg.frames * len(cfg.trajectories), points=0)
 
+    table = sorted(names)  # every stage's objects (the order Simulator gives one scene's objects)
     summary: dict = {"phases": K, "trajectories": {}, "stages": []}
     tracks = 0
     for k in range(K):
         out = phase_folder(folder, k)
-        sim = simulator(blends[k])
+        sim = simulator(blends[k], table)  # one object table: an object's instance id is the same in every stage
         sim.configure_render(resolution=cfg.resolution, device=cfg.device)
         plan = plan_site(seed, params, k, K)
         stage = {"points": sim.num_points, "trajectories": {}}
@@ -130,6 +132,8 @@ def write_timeline_changes(folder: Path, stages: int, kinds: list[str]) -> dict:
     from ..scene import changes as ch
 
     gts = [read_ground_truth(phase_folder(folder, k)) for k in range(stages)]
+    # the stages share one object table (run_phases); an object a stage lacks is an empty part there
+    present = [[i for i, p in enumerate(gt.parts) if len(p.faces)] for gt in gts]
     names, tables = ch.union_table([[p.name for p in gt.parts] for gt in gts])
     labels = gts[0].labels
     by_name = {p.name: labels.index(p.label) for gt in gts for p in gt.parts}
@@ -137,7 +141,9 @@ def write_timeline_changes(folder: Path, stages: int, kinds: list[str]) -> dict:
     pairs, counts = [], []
     for k in range(1, stages):
         a, b = gts[k - 1], gts[k]
-        status, transform = ch.classify_instances(a.parts, b.parts, tables[k - 1], tables[k], len(names))
+        ia, ib = present[k - 1], present[k]
+        status, transform = ch.classify_instances([a.parts[i] for i in ia], [b.parts[i] for i in ib],
+                                                  tables[k - 1][ia], tables[k][ib], len(names))
         xyz_a, xyz_b = clouds[k - 1].points, clouds[k].points
         d_added, d_removed = ch.surface_distance(xyz_b, a.parts), ch.surface_distance(xyz_a, b.parts)
         masks = {}

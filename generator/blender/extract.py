@@ -179,11 +179,13 @@ def assign_pass_indices(parts: list[MeshPart], label_ids: dict[str, int]) -> Pas
     """Give every simulated Blender object a unique ``pass_index`` (1, 2, ...; 0 = none).
 
     Copies of one object made by instancing share its pass index and map to the first of
-    those parts.
+    those parts. A part with no faces (an object of a fixed instance table that this scene
+    lacks) has no Blender object and pass index 0.
     """
     first_part: dict[str, int] = {}
     for i, p in enumerate(parts):
-        first_part.setdefault(p.source, i)
+        if len(p.faces):
+            first_part.setdefault(p.source, i)
     if len(first_part) > MAX_PASS_INDEX:
         raise ValueError(f"{len(first_part)} objects exceed Blender's {MAX_PASS_INDEX} object pass indices")
     for obj in bpy.data.objects:
@@ -196,5 +198,5 @@ def assign_pass_indices(parts: list[MeshPart], label_ids: dict[str, int]) -> Pas
         labels[k] = label_ids[parts[i].label]
         instances[k] = i
         index_of_source[source] = k
-    of_part = np.array([index_of_source[p.source] for p in parts], dtype=np.int32)
+    of_part = np.array([index_of_source[p.source] if len(p.faces) else 0 for p in parts], dtype=np.int32)
     return PassTable(labels, instances, of_part)
