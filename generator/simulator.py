@@ -14,6 +14,7 @@ import numpy as np
 from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
 from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
+from .blender.objects import SceneError, check_names, object_table  # noqa: F401 (SceneError is public here)
 from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
 from .checks import check_number
@@ -29,10 +30,6 @@ from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .paper_api import PaperAPI
 from .passes import RenderOutput, label_coverage, semantic_map
-
-
-class SceneError(ValueError):
-    """The loaded scene cannot be simulated (e.g. it has no geometry)."""
 
 
 class Simulator(PaperAPI):
@@ -92,8 +89,8 @@ class Simulator(PaperAPI):
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
         self.seed = int(seed)
         self.blend_file = Path(blend_file)
-        self.geometry_nodes_objects = _check_names("geometry_nodes_objects", geometry_nodes_objects)
-        self.filter_object_names = _check_names("filter_object_names", filter_object_names)
+        self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
+        self.filter_object_names = check_names("filter_object_names", filter_object_names)
         self.verbose = bool(verbose)
 
         session.open_blend(self.blend_file)
@@ -108,15 +105,8 @@ class Simulator(PaperAPI):
         self.clip_start, self.clip_end = bcam.clip_range(self._camera)
 
         extracted = extract_parts()
-        if not extracted.parts:
-            raise SceneError(f"{self.blend_file} has no render-visible mesh objects with faces")
-        self._parts, self._bindings = _without_objects(extracted.parts, extracted.bindings, self.filter_object_names)
-        if not self._parts:
-            raise SceneError(f"{self.blend_file}: filter_object_names leaves no mesh objects")
-        if instance_names is not None:
-            self._parts, self._bindings = _on_instance_table(
-                self._parts, self._bindings, _check_names("instance_names", instance_names), self.blend_file)
-        self.labels: list[str] = _label_table({p.label for p in self._parts})
+        self._parts, self._bindings, self.labels = object_table(
+            extracted, self.filter_object_names, instance_names, self.blend_file)
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
         self._geometry = SceneGeometry(self._parts)
@@ -471,47 +461,3 @@ class Simulator(PaperAPI):
         hit = (part >= 0) & (t > self.clip_start) & (t <= self.clip_end)
         out = np.where(hit, self._pass_table.of_part[np.maximum(part, 0)], 0)
         return out.reshape(self.height, self.width).astype(np.int32)
-
-
-def _check_names(name: str, value) -> tuple[str, ...]:
-    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
-        raise ValueError(f"{name} must be a list of object names, got {value!r}")
-    return tuple(value)
-
-
-def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ...]):
-    """Parts and dynamic bindings without the parts of the named objects (an instance
-    belongs to its instancer's name), binding indices renumbered."""
-    if not names:
-        return parts, bindings
-    keep = [i for i, p in enumerate(parts) if p.name.split("/")[0] not in names]
-    new_index = {old: new for new, old in enumerate(keep)}
-    kept = [replace(b, part=new_index[b.part]) for b in bindings if b.part in new_index]
-    return [parts[i] for i in keep], kept
-
-
-def _on_instance_table(parts: list[MeshPart], bindings: list, names: tuple[str, ...], blend: Path):
-    """Parts ordered as ``names`` (an empty static part for a name the scene lacks) and the
-    dynamic bindings renumbered."""
-    if len(set(names)) != len(names):
-        raise ValueError("instance_names has repeated names; give each object once")
-    index = {n: i for i, n in enumerate(names)}
-    missing = [p.name for p in parts if p.name not in index]
-    if missing:
-        raise ValueError(f"instance_names lacks {len(missing)} object(s) of {blend}, e.g. {missing[0]!r}; "
-                         "give every object of the scene")
-    table = [MeshPart(n, label_of(n), np.zeros((0, 3)), np.zeros((0, 3), np.int64)) for n in names]
-    for p in parts:
-        table[index[p.name]] = p
-    return table, [replace(b, part=index[parts[b.part].name]) for b in bindings]
-
-
-def _label_table(present: set[str]) -> list[str]:
-    """Label names indexed by id: the scene's stored table (``buildee_labels``, e.g. the
-    generator's taxonomy) followed by any other labels in sorted order; without a stored
-    table, the sorted labels present."""
-    import json
-
-    stored = session.bpy.context.scene.get("buildee_labels")
-    table = list(json.loads(stored)) if isinstance(stored, str) else []
-    return table + sorted(present - set(table))

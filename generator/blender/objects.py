@@ -1,0 +1,75 @@
+"""The Simulator's object table: which extracted parts it simulates, in which order
+(instance id = index), and the label table (label id = index)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.parts import MeshPart
+from . import session
+from .extract import label_of
+
+
+class SceneError(ValueError):
+    """The loaded scene cannot be simulated (e.g. it has no geometry)."""
+
+
+def check_names(name: str, value) -> tuple[str, ...]:
+    """``value`` as a tuple of object names, or a one-line error naming the argument."""
+    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+        raise ValueError(f"{name} must be a list of object names, got {value!r}")
+    return tuple(value)
+
+
+def object_table(extracted, filter_object_names: tuple[str, ...], instance_names, blend: Path):
+    """(parts, dynamic bindings, labels) of the extracted scene: the ``filter_object_names``
+    objects dropped, parts ordered as ``instance_names`` when given (docs/simulator-api.md),
+    labels as :func:`label_table` orders them."""
+    if not extracted.parts:
+        raise SceneError(f"{blend} has no render-visible mesh objects with faces")
+    parts, bindings = _without_objects(extracted.parts, extracted.bindings, filter_object_names)
+    if not parts:
+        raise SceneError(f"{blend}: filter_object_names leaves no mesh objects")
+    if instance_names is not None:
+        parts, bindings = _on_instance_table(parts, bindings, check_names("instance_names", instance_names), blend)
+    return parts, bindings, label_table({p.label for p in parts})
+
+
+def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ...]):
+    """Parts and dynamic bindings without the parts of the named objects (an instance
+    belongs to its instancer's name), binding indices renumbered."""
+    if not names:
+        return parts, bindings
+    keep = [i for i, p in enumerate(parts) if p.name.split("/")[0] not in names]
+    new_index = {old: new for new, old in enumerate(keep)}
+    kept = [replace(b, part=new_index[b.part]) for b in bindings if b.part in new_index]
+    return [parts[i] for i in keep], kept
+
+
+def _on_instance_table(parts: list[MeshPart], bindings: list, names: tuple[str, ...], blend: Path):
+    """Parts ordered as ``names`` (an empty static part for a name the scene lacks) and the
+    dynamic bindings renumbered."""
+    if len(set(names)) != len(names):
+        raise ValueError("instance_names has repeated names; give each object once")
+    index = {n: i for i, n in enumerate(names)}
+    missing = [p.name for p in parts if p.name not in index]
+    if missing:
+        raise ValueError(f"instance_names lacks {len(missing)} object(s) of {blend}, e.g. {missing[0]!r}; "
+                         "give every object of the scene")
+    table = [MeshPart(n, label_of(n), np.zeros((0, 3)), np.zeros((0, 3), np.int64)) for n in names]
+    for p in parts:
+        table[index[p.name]] = p
+    return table, [replace(b, part=index[parts[b.part].name]) for b in bindings]
+
+
+def label_table(present: set[str]) -> list[str]:
+    """Label names indexed by id: the scene's stored table (``buildee_labels``, e.g. the
+    generator's taxonomy) followed by any other labels in sorted order; without a stored
+    table, the sorted labels present."""
+    stored = session.bpy.context.scene.get("buildee_labels")
+    table = list(json.loads(stored)) if isinstance(stored, str) else []
+    return table + sorted(present - set(table))
