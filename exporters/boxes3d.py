@@ -28,6 +28,7 @@ from generator.geometry.boxes import Box3D, part_world_matrices, upright_box
 
 from . import FORMAT_VERSION
 from .hdf5 import REMEDY, DamagedFileError
+from .jsonfile import check_format_version, read_json_file
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
 FILE_NAME = "boxes3d.json"
@@ -89,16 +90,8 @@ class Boxes3DReader:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        try:
-            doc = json.loads(self.path.read_bytes())
-        except FileNotFoundError:
-            raise DamagedFileError(f"{self.path}: no such file; {REMEDY}") from None
-        except (OSError, ValueError) as exc:
-            raise DamagedFileError(f"{self.path}: unreadable boxes file ({exc.__class__.__name__}); {REMEDY}") from None
-        version = doc.get("format_version") if isinstance(doc, dict) else None
-        if version != FORMAT_VERSION:
-            raise DamagedFileError(f"{self.path}: format {version!r}, this reader reads {FORMAT_VERSION} (regenerate the "
-                                   "seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+        doc = read_json_file(self.path, "boxes file")
+        check_format_version(self.path, doc.get("format_version") if isinstance(doc, dict) else None)
         try:
             self.labels, self.instances, self.units = list(doc["labels"]), list(doc["instances"]), dict(doc["units"])
             self.width, self.height = int(doc["width"]), int(doc["height"])

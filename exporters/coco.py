@@ -30,6 +30,7 @@ from generator.geometry.boxes import amodal_box, part_world_matrices, tight_boxe
 from . import FORMAT_VERSION
 from .frames import frame_names
 from .hdf5 import DamagedFileError, REMEDY
+from .jsonfile import check_format_version, read_json_file
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
 FILE_NAME = "coco.json"
@@ -131,17 +132,9 @@ class CocoReader:
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
+        doc = read_json_file(self.path, "COCO file")
         try:
-            doc = json.loads(self.path.read_bytes())
-        except FileNotFoundError:
-            raise DamagedFileError(f"{self.path}: no such file; {REMEDY}") from None
-        except (OSError, ValueError) as exc:
-            raise DamagedFileError(f"{self.path}: unreadable COCO file ({exc.__class__.__name__}); {REMEDY}") from None
-        try:
-            version = doc["info"]["format_version"]
-            if version != FORMAT_VERSION:
-                raise DamagedFileError(f"{self.path}: format {version!r}, this reader reads {FORMAT_VERSION} (regenerate "
-                                       "the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+            check_format_version(self.path, doc["info"]["format_version"])
             self.categories = {c["id"]: c for c in doc["categories"]}
             self.images = {int(im["frame"]): im for im in doc["images"]}
             by_image: dict[int, list] = {im["id"]: [] for im in doc["images"]}
