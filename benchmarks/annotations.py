@@ -26,18 +26,9 @@ from generator.blender import session  # noqa: E402,F401  (bpy before open3d)
 import numpy as np  # noqa: E402
 
 from generator import Simulator  # noqa: E402
+from render import medium_site  # noqa: E402  (benchmarks/render.py: the same cached medium site)
 
 RESOLUTION = (640, 480)
-
-
-def medium_site(seed: int, cache: Path) -> Path:
-    from generator.scene import build_site
-
-    folder = cache / f"site-medium-{seed}"
-    blend = folder / "site.blend"
-    if not blend.exists():
-        build_site(seed, "medium", folder, preview=False, frames=250)
-    return blend
 
 
 def main() -> None:
