@@ -83,3 +83,23 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, o
         sink.close()
     traj.save(out / "trajectory.npz")
     return coverage, tracks
+
+
+def fly_scene(sim, trajectories, folder: Path, seed: int, plan, cfg, on_frame=None) -> tuple[dict, int]:
+    """Fly each ``(kind, trajectory)`` of ``trajectories`` into ``folder/kind`` (an iterator
+    plans each one just before it is flown), then write the scene's ground truth and
+    ``labels.json`` into ``folder``. Returns ({kind: {"frames", "final_coverage"}}, visible
+    point observations)."""
+    import json
+
+    from exporters.ground_truth import write_simulator_ground_truth
+
+    per_kind, tracks = {}, 0
+    for kind, traj in trajectories:
+        coverage, visible = fly(sim, traj, Path(folder) / kind, seed, plan, cfg.colmap_text, cfg.outputs,
+                                on_frame=on_frame)
+        tracks += visible
+        per_kind[kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
+    write_simulator_ground_truth(sim, Path(folder) / "ground_truth", seed, cfg.scoring_density)
+    (Path(folder) / "labels.json").write_text(json.dumps(sim.labels))
+    return per_kind, tracks

@@ -15,7 +15,6 @@ the poses of frame t are identical in every stage.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -47,7 +46,6 @@ class AllStages:
 def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     """Generate the K stages of ``seed`` into ``folder`` and its changes; manifest last."""
     from exporters import FORMAT_VERSION
-    from exporters.ground_truth import write_simulator_ground_truth
     from exporters.manifest import write_manifest
 
     from .. import Simulator
@@ -55,7 +53,7 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     from ..geometry.raycast import SceneGeometry
     from ..scene import build_site, plan_site, site_params
     from .config import check_point_budget
-    from .fly import fly
+    from .fly import fly_scene
 
     t0 = time.perf_counter()
     K, anim = cfg.phases, max(250, cfg.frames)
@@ -93,14 +91,9 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
         sim = simulator(blends[k], table)  # one object table: an object's instance id is the same in every stage
         sim.configure_render(resolution=cfg.resolution, device=cfg.device)
         plan = plan_site(seed, params, k, K)
-        stage = {"points": sim.num_points, "trajectories": {}}
-        for kind, traj in trajectories.items():
-            coverage, visible = fly(sim, traj, out / kind, seed, plan, cfg.colmap_text, cfg.outputs,
-                                    on_frame=lambda: emit(event="frame"))
-            tracks += visible
-            stage["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
-        write_simulator_ground_truth(sim, out / "ground_truth", seed, cfg.scoring_density)
-        (out / "labels.json").write_text(json.dumps(sim.labels))
+        per_kind, visible = fly_scene(sim, trajectories.items(), out, seed, plan, cfg, lambda: emit(event="frame"))
+        tracks += visible
+        stage = {"points": sim.num_points, "trajectories": per_kind}
         summary["stages"].append(stage)
         summary["render_device"] = sim.render_device
     summary["trajectories"] = {kind: {"frames": len(t)} for kind, t in trajectories.items()}

@@ -16,7 +16,7 @@ def emit(**event) -> None:
     print("@@" + json.dumps(event), flush=True)
 
 
-from .fly import fly  # noqa: E402  (the trajectory loop)
+from .fly import fly_scene  # noqa: E402  (the trajectory loop)
 
 
 def run(config: dict, seed: int, folder: Path) -> dict:
@@ -27,7 +27,6 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     session.set_log_path(folder / "blender.log")
     import numpy as np
 
-    from exporters.ground_truth import write_simulator_ground_truth
     from exporters.manifest import write_manifest
 
     from .. import Simulator
@@ -49,16 +48,10 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     plan = plan_site(seed, site_params(cfg.scene_preset, frames=max(250, cfg.frames)))
     emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
     fps = 10.0
-    tracks = 0
     summary = {"trajectories": {}, "render_device": sim.render_device}
-    for kind in cfg.trajectories:
-        traj = plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps)
-        coverage, visible_tracks = fly(sim, traj, folder / kind, seed, plan, cfg.colmap_text, cfg.outputs,
-                                       on_frame=lambda: emit(event="frame"))
-        tracks += visible_tracks
-        summary["trajectories"][kind] = {"frames": len(traj), "final_coverage": coverage[-1]}
-    write_simulator_ground_truth(sim, folder / "ground_truth", seed, cfg.scoring_density)
-    (folder / "labels.json").write_text(json.dumps(sim.labels))
+    planned = ((kind, plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps))
+               for kind in cfg.trajectories)  # each planned right before it is flown
+    summary["trajectories"], tracks = fly_scene(sim, planned, folder, seed, plan, cfg, lambda: emit(event="frame"))
     summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
     from exporters import FORMAT_VERSION
