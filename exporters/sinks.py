@@ -90,7 +90,7 @@ class Sink(Protocol):
 # name -> factory(context) -> Sink; filled by the modules that define sinks.
 SINKS: dict[str, Callable[[TrajectoryContext], Sink]] = {}
 
-# the modules whose imports register the exports (those not installed are skipped)
+# the modules whose imports register the exports (a new export adds its module here)
 SINK_MODULES = ("exporters.frames", "exporters.trajectory_sinks", "exporters.nerfstudio", "exporters.coco", "exporters.boxes3d")
 
 
@@ -100,11 +100,7 @@ def load_sinks() -> dict[str, Callable[[TrajectoryContext], Sink]]:
     import importlib
 
     for name in SINK_MODULES:
-        try:
-            importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name != name:  # a missing dependency inside an existing module is an error
-                raise
+        importlib.import_module(name)
     return SINKS
 
 
