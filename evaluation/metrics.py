@@ -1,31 +1,25 @@
 """Reconstruction metrics (definitions: the Metrics section of DESIGN.md, restated in
 docs/evaluation.md). Distances in metres, Euclidean unless stated; thresholds strict (<).
 
-Everything is derived from one exact nearest-neighbour query per direction (open3d's
-nanoflann k-d tree, float64, all cores, against the distinct points only), plus one L1
+Everything is derived from one exact nearest-neighbour query per direction (float64, all
+cores, against the distinct points only, in :class:`evaluation.kdtree.KDTree`), plus one L1
 query per direction bounded by the L1 distance to the Euclidean nearest neighbour (the
-paper-compatibility block).
+paper-compatibility block), in the same trees.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from generator.geometry.voxels import majority_labels
 
+from .kdtree import KDTree
+
 DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
-
-
-# Leaf size of the L1 k-d tree: larger leaves than scipy's default (16) cost fewer node visits
-# for points far from the target cloud (measured: 15% less time for the Manhattan figures).
-L1_LEAF_SIZE = 64
-# Points queried together share one L1 distance bound (scipy takes one per call): points are
-# grouped by their own bound within this factor.
-L1_BOUND_RATIO = 1.05
 
 
 def unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -45,7 +39,8 @@ def unique_rows(points: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
 @dataclass(frozen=True)
 class Target:
     """A target cloud (N, 3) and its distinct rows (``first``: their indices, None when all
-    rows are distinct), found once and shared by the Euclidean and the Manhattan queries."""
+    rows are distinct), found once; the k-d tree of the distinct rows is built on first use
+    and shared by the Euclidean and the Manhattan queries."""
 
     points: np.ndarray
     distinct: np.ndarray
@@ -57,61 +52,38 @@ class Target:
         distinct, first = unique_rows(points)
         return cls(points, distinct, first)
 
+    @cached_property
+    def tree(self) -> KDTree:
+        return KDTree(self.distinct)
+
     def original(self, idx: np.ndarray) -> np.ndarray:
         """Indices into ``points`` of indices into ``distinct`` (first occurrences)."""
         return idx if self.first is None else self.first[idx]
 
 
-def knn(source: np.ndarray, target: np.ndarray | Target, k: int = 1) -> np.ndarray:
-    """Indices (N, k') into ``target`` of the k' = min(k, distinct targets) Euclidean nearest
-    target points of each source point, nearest first, never two equal target points (the
-    first occurrence stands for its copies). Exact, in float64 (open3d's nanoflann k-d tree,
-    all cores)."""
-    from generator.geometry.o3d import import_open3d
-
-    o3d = import_open3d()
-    tgt = target if isinstance(target, Target) else Target.of(target)
-    k = min(k, len(tgt.distinct))
-    nns = o3d.core.nns.NearestNeighborSearch(o3d.core.Tensor(np.ascontiguousarray(tgt.distinct, np.float64)))
-    nns.knn_index()
-    idx, _ = nns.knn_search(o3d.core.Tensor(np.ascontiguousarray(source, np.float64)), k)
-    return tgt.original(idx.numpy().astype(np.int64).reshape(len(source), k))
-
-
 def nearest(source: np.ndarray, target: np.ndarray | Target) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean distance (N,) from each source point to its nearest target point and that
-    point's index (N,). Exact, in float64 (see :func:`knn`)."""
+    point's index (N,): exact, in float64; among equally near points the first in ``target``
+    (so never one of its later copies)."""
     tgt = target if isinstance(target, Target) else Target.of(target)
-    idx = knn(source, tgt, 1)[:, 0]
+    source = np.asarray(source, np.float64)
+    idx = tgt.original(tgt.tree.nearest(source))
     # the distance from the coordinates (not from the squared distance) for exact ties with tau
     return np.linalg.norm(source - tgt.points[idx], axis=1), idx
 
 
 def nearest_manhattan(source: np.ndarray, target: np.ndarray | Target, nearest_idx: np.ndarray) -> np.ndarray:
-    """Manhattan (L1) distance (N,) from each source point to its L1-nearest target point.
+    """Manhattan (L1) distance (N,) from each source point to its L1-nearest target point,
+    exact (computed as scipy does: the same floats).
 
-    ``nearest_idx`` (N,): the index of each source point's Euclidean nearest target point.
-    B, the L1 distance to it, bounds the answer from above, and every target q is at least
-    R (the Euclidean nearest distance) away: |x - q|_1 >= |x - q|_2 >= R. So B is the answer
-    wherever B <= R (an axis-aligned offset, or 0); the other points are queried in scipy's
-    cKDTree (L1, all cores) with B as the distance bound (one bound per call: points are
-    grouped by bound within a factor ``L1_BOUND_RATIO``)."""
+    ``nearest_idx`` (N,): the index of each source point's Euclidean nearest target point;
+    the L1 distance to it bounds the answer from above, so the tree query prunes every cell
+    farther than that (for a point far above the ground the bound is nearly tight)."""
     source = np.asarray(source, np.float64)
     tgt = target if isinstance(target, Target) else Target.of(target)
-    offset = source - tgt.points[np.asarray(nearest_idx, dtype=np.int64)]
-    bound = np.abs(offset).sum(axis=1)
-    radius = np.sqrt(np.einsum("ij,ij->i", offset, offset))
-    open_ = np.flatnonzero(bound > radius)
-    out = bound
-    if len(open_) == 0 or len(tgt.distinct) == 1:
-        return out
-    tree = cKDTree(tgt.distinct, leafsize=L1_LEAF_SIZE)
-    order = open_[np.argsort(bound[open_], kind="stable")]
-    level = np.floor(np.log(bound[order] / bound[order[0]]) / np.log(L1_BOUND_RATIO))
-    for chunk in np.split(order, np.flatnonzero(np.diff(level)) + 1):
-        ub = float(np.nextafter(bound[chunk[-1]], np.inf))
-        out[chunk], _ = tree.query(source[chunk], k=1, p=1, distance_upper_bound=ub, workers=-1)
-    return out
+    offset = np.abs(source - tgt.points[np.asarray(nearest_idx, dtype=np.int64)])
+    bound = (offset[:, 0] + offset[:, 1]) + offset[:, 2]  # the tree's own order of the sum
+    return tgt.tree.nearest_manhattan(source, bound)
 
 
 @dataclass

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from evaluation.metrics import Neighbours, knn, nearest_manhattan, reconstruction_metrics, unique_rows
+from evaluation.kdtree import KDTree
+from evaluation.metrics import Neighbours, nearest, nearest_manhattan, reconstruction_metrics, unique_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,14 +45,41 @@ def test_neighbours_and_manhattan_equal_ckdtree(duplicates):
             np.testing.assert_allclose(nearest_manhattan(src, tgt, i), l1_ref, rtol=0, atol=1e-12)
 
 
-def test_unique_rows_and_knn_never_return_two_copies():
+def test_unique_rows_and_nearest_never_return_a_later_copy():
     pts = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 0], [2, 0, 0.0]])
     distinct, first = unique_rows(pts)
     assert first.tolist() == [0, 1, 4]
     assert distinct.tolist() == [[0, 0, 0], [1, 0, 0], [2, 0, 0]]
     assert unique_rows(distinct)[1] is None
-    idx = knn(np.array([[0.1, 0, 0]]), pts, 4)
-    assert idx.tolist() == [[0, 1, 4]]  # three distinct points only, first occurrences
+    d, idx = nearest(np.array([[0.1, 0, 0], [1.2, 0, 0], [0.5, 0, 0], [1.5, 0, 0]]), pts)
+    assert idx.tolist() == [0, 1, 0, 1]  # first occurrences; equally near: the first point
+    np.testing.assert_allclose(d, [0.1, 0.2, 0.5, 0.5], rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("layout", ["lattice", "scales", "one"])
+def test_kdtree_equals_brute_force(layout):
+    """Euclidean index (ties: the lowest index) and L1 distance of every query equal a brute
+    force over all points, on a lattice full of ties, on points at very different scales
+    (a deep tree) and on a single point."""
+    rng = np.random.default_rng(5)
+    if layout == "lattice":
+        pts = np.unique(np.round(rng.uniform(0, 1, (600, 3)), 1), axis=0)
+        queries = np.round(rng.uniform(-0.5, 1.5, (500, 3)), 2)
+    elif layout == "scales":
+        pts = np.concatenate([rng.uniform(-1, 1, (300, 3)) * 10.0 ** rng.integers(-9, 4, (300, 1)),
+                              [[5e3, 0, 0], [0, -5e3, 0]]])
+        queries = np.concatenate([rng.normal(0, 1e-6, (200, 3)), rng.normal(0, 1e3, (200, 3))])
+    else:
+        pts = np.array([[1.0, 2.0, 3.0]])
+        queries = rng.uniform(-5, 5, (50, 3))
+    tree = KDTree(pts, leaf_size=2)
+    idx = tree.nearest(queries)
+    d2 = ((queries[:, None, :] - pts[None]) ** 2).sum(axis=-1)
+    np.testing.assert_array_equal(idx, np.argmin(d2, axis=1))
+    l1 = np.abs(queries[:, None, :] - pts[None]).sum(axis=-1).min(axis=1)
+    bound = np.abs(queries - pts[idx]).sum(axis=1)
+    np.testing.assert_array_equal(tree.nearest_manhattan(queries, bound), l1)
+    np.testing.assert_array_equal(tree.nearest_manhattan(queries, np.full(len(queries), np.inf)), l1)
 
 
 def test_manhattan_equals_ckdtree_on_a_site_like_cloud_with_far_outliers():
