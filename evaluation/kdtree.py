@@ -214,13 +214,20 @@ class KDTree:
         self.size = len(points)
         self._tree = _build(points, int(leaf_size))
 
-    def _run(self, queries: np.ndarray, bound: np.ndarray, manhattan: bool) -> tuple[np.ndarray, np.ndarray]:
+    @property
+    def order(self) -> np.ndarray:
+        """Indices of the tree's points, leaf by leaf: an order that keeps near points together
+        (queries run fastest in such an order)."""
+        return self._tree[1]
+
+    def _run(self, queries: np.ndarray, bound: np.ndarray, manhattan: bool,
+             order: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         queries = np.ascontiguousarray(queries, np.float64)
         n = len(queries)
         out_d, out_i = np.empty(n), np.empty(n, np.int64)
         if n == 0:
             return out_d, out_i
-        order = _morton_order(queries)
+        order = _morton_order(queries) if order is None else np.ascontiguousarray(order, np.int64)
         threads = _threads()
         cuts = np.linspace(0, n, min(n, threads * CHUNKS_PER_THREAD) + 1).astype(np.int64)
         bound = np.ascontiguousarray(bound, np.float64)
@@ -236,12 +243,15 @@ class KDTree:
                 list(pool.map(work, range(len(cuts) - 1)))
         return out_d, out_i
 
-    def nearest(self, queries: np.ndarray) -> np.ndarray:
-        """Index (M,) of each query's Euclidean nearest point (ties: the lowest index)."""
-        return self._run(queries, np.full(len(queries), np.inf), False)[1]
+    def nearest(self, queries: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
+        """Index (M,) of each query's Euclidean nearest point (ties: the lowest index).
+        ``order``: a permutation of the queries keeping near ones together (default: along
+        a Z-order curve)."""
+        return self._run(queries, np.full(len(queries), np.inf), False, order)[1]
 
-    def nearest_manhattan(self, queries: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    def nearest_manhattan(self, queries: np.ndarray, bound: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
         """L1 distance (M,) from each query to its L1-nearest point, given ``bound`` (M,), an
         L1 distance each query is known to reach (e.g. to one of the points): the answer is
-        min(bound, the nearest L1 distance), exact; a tight bound prunes most of the tree."""
-        return self._run(queries, bound, True)[0]
+        min(bound, the nearest L1 distance), exact; a tight bound prunes most of the tree.
+        ``order``: as in :meth:`nearest`."""
+        return self._run(queries, bound, True, order)[0]

@@ -9,6 +9,7 @@ paper-compatibility block), in the same trees.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -56,34 +57,46 @@ class Target:
     def tree(self) -> KDTree:
         return KDTree(self.distinct)
 
+    @property
+    def order(self) -> np.ndarray | None:
+        """A spatially coherent order of ``points`` to query them in (the tree's leaf order;
+        None, for the default, when rows repeat)."""
+        return self.tree.order if self.first is None else None
+
     def original(self, idx: np.ndarray) -> np.ndarray:
         """Indices into ``points`` of indices into ``distinct`` (first occurrences)."""
         return idx if self.first is None else self.first[idx]
 
 
-def nearest(source: np.ndarray, target: np.ndarray | Target) -> tuple[np.ndarray, np.ndarray]:
+def _queries(source: np.ndarray | Target) -> tuple[np.ndarray, np.ndarray | None]:
+    if isinstance(source, Target):
+        return source.points, source.order
+    return np.asarray(source, np.float64), None
+
+
+def nearest(source: np.ndarray | Target, target: np.ndarray | Target) -> tuple[np.ndarray, np.ndarray]:
     """Euclidean distance (N,) from each source point to its nearest target point and that
     point's index (N,): exact, in float64; among equally near points the first in ``target``
     (so never one of its later copies)."""
     tgt = target if isinstance(target, Target) else Target.of(target)
-    source = np.asarray(source, np.float64)
-    idx = tgt.original(tgt.tree.nearest(source))
+    source, order = _queries(source)
+    idx = tgt.original(tgt.tree.nearest(source, order))
     # the distance from the coordinates (not from the squared distance) for exact ties with tau
     return np.linalg.norm(source - tgt.points[idx], axis=1), idx
 
 
-def nearest_manhattan(source: np.ndarray, target: np.ndarray | Target, nearest_idx: np.ndarray) -> np.ndarray:
+def nearest_manhattan(source: np.ndarray | Target, target: np.ndarray | Target, nearest_idx: np.ndarray) -> np.ndarray:
     """Manhattan (L1) distance (N,) from each source point to its L1-nearest target point,
     exact (computed as scipy does: the same floats).
 
     ``nearest_idx`` (N,): the index of each source point's Euclidean nearest target point;
     the L1 distance to it bounds the answer from above, so the tree query prunes every cell
     farther than that (for a point far above the ground the bound is nearly tight)."""
-    source = np.asarray(source, np.float64)
     tgt = target if isinstance(target, Target) else Target.of(target)
+    source, order = _queries(source)
     offset = np.abs(source - tgt.points[np.asarray(nearest_idx, dtype=np.int64)])
     bound = (offset[:, 0] + offset[:, 1]) + offset[:, 2]  # the tree's own order of the sum
-    return tgt.tree.nearest_manhattan(source, bound)
+    return tgt.tree.nearest_manhattan(source, bound, order)
 
 
 @dataclass
@@ -102,8 +115,10 @@ class Neighbours:
     @classmethod
     def compute(cls, pred: np.ndarray, gt: np.ndarray) -> "Neighbours":
         p, g = Target.of(pred), Target.of(gt)
-        d_pg, i_pg = nearest(p.points, g)
-        d_gp, i_gp = nearest(g.points, p)
+        with ThreadPoolExecutor(2) as pool:  # the two trees are built at once
+            list(pool.map(lambda t: t.tree, (p, g)))
+        d_pg, i_pg = nearest(p, g)
+        d_gp, i_gp = nearest(g, p)
         return cls(d_pg, i_pg, d_gp, i_gp, p, g)
 
 
@@ -168,8 +183,10 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
         out["semantic"] = _semantic(np.asarray(pred_labels), np.asarray(gt_labels), d_pg, i_pg, d_gp, i_gp, tau,
                                     class_names)
     if paper_block:
-        l1_pg = nearest_manhattan(pred, nn.gt if nn.gt is not None else gt, i_pg)
-        l1_gp = nearest_manhattan(gt, nn.pred if nn.pred is not None else pred, i_gp)
+        p = nn.pred if nn.pred is not None else pred
+        g = nn.gt if nn.gt is not None else gt
+        l1_pg = nearest_manhattan(p, g, i_pg)
+        l1_gp = nearest_manhattan(g, p, i_gp)
         out["paper"] = {
             "note": "the paper's code: one direction at a time, Manhattan (L1) norm of the offset to the nearest "
                     "neighbour under that norm; not the symmetric Euclidean Chamfer-L1 above",
