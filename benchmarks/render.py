@@ -13,8 +13,13 @@ no adaptive sampling, 12 bounces of every kind, OpenImageDenoise with the accura
 prefilter and its large network. Timings: median seconds per frame of ``Simulator.render()``,
 wall clock and CPU time of all its threads (the latter barely moves when other work shares the machine).
 
+``--set`` changes RenderSettings fields of the 'after' presets; ``--raw`` sets Blender properties
+that RenderSettings does not hold (for trying a Cycles setting before it becomes one): ``NAME``
+is ``scene.cycles.NAME``, ``view_layer.NAME`` and ``view_layer.cycles.NAME`` apply to every view
+layer; the 'before' blocks get the values these properties had when the site was opened.
+
 Usage: .venv/bin/python benchmarks/render.py [--presets preview default high] [--frames 0 13 26]
-       [--repeats 2] [--references-only] [--set samples=3 ...]
+       [--repeats 2] [--references-only] [--set samples=3 ...] [--raw sampling_pattern=TABULATED_SOBOL ...]
 """
 
 from __future__ import annotations
@@ -75,11 +80,33 @@ def orbit_poses(sim: Simulator, seed: int) -> np.ndarray:
     return plan_trajectory("orbit", sim, sim.spawn_points, start, seed, ORBIT_FRAMES, 10.0).poses
 
 
+def raw_targets(path: str) -> tuple[list, str]:
+    """The Blender structs a ``--raw`` property path names, and the property's name."""
+    scene = bpy.context.scene
+    if path.startswith("view_layer.cycles."):
+        return [vl.cycles for vl in scene.view_layers], path[len("view_layer.cycles."):]
+    if path.startswith("view_layer."):
+        return list(scene.view_layers), path[len("view_layer."):]
+    return [scene.cycles], path
+
+
+def current_raw(paths) -> dict:
+    out = {}
+    for path in paths:
+        structs, name = raw_targets(path)
+        if not hasattr(structs[0], name):
+            raise SystemExit(f"--raw {path}: Blender has no such property (see {type(structs[0]).__name__})")
+        out[path] = getattr(structs[0], name)
+    return out
+
+
 def apply(sim: Simulator, settings: RenderSettings, raw: dict | None = None) -> None:
     sim.configure_render(**{k: v for k, v in vars(settings).items() if v is not None}, resolution=RESOLUTION)
     with session.quiet():
-        for name, value in (raw or {}).items():
-            setattr(bpy.context.scene.cycles, name, value)
+        for path, value in (raw or {}).items():
+            structs, name = raw_targets(path)
+            for struct in structs:
+                setattr(struct, name, value)
 
 
 def render_at(sim: Simulator, poses: np.ndarray, i: int) -> tuple[float, float, np.ndarray]:
@@ -129,21 +156,30 @@ def main() -> None:
     ap.add_argument("--references-only", action="store_true", help="render the missing references and stop")
     ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
                     help="render settings on top of the 'after' presets, e.g. samples=3 light_tree=true (JSON values)")
+    ap.add_argument("--raw", nargs="+", default=[], metavar="PATH=VALUE",
+                    help="Blender properties on top of the 'after' presets: NAME (scene.cycles), view_layer.NAME, "
+                         "view_layer.cycles.NAME, e.g. sampling_pattern=TABULATED_SOBOL (JSON values)")
     args = ap.parse_args()
-    overrides = {k: json.loads(v) if v[:1] in "0123456789-[tfn" else v for k, v in (a.split("=", 1) for a in args.set)}
+    parse = lambda items: {k: json.loads(v) if v[:1] in "0123456789-[tfn" else v  # noqa: E731
+                           for k, v in (a.split("=", 1) for a in items)}
+    overrides, raw = parse(args.set), parse(args.raw)
     args.cache.mkdir(parents=True, exist_ok=True)
     sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview")
     sim.configure_render(resolution=RESOLUTION)
     poses = orbit_poses(sim, args.seed)
+    if raw:  # Cycles' debug-only choices (e.g. sampling_pattern SOBOL_BURLEY) need its developer options
+        bpy.context.preferences.experimental.use_cycles_debug = True
+        bpy.context.preferences.view.show_developer_ui = True
+    raw_before = current_raw(raw)
     key = hashlib.sha1(json.dumps([vars(REFERENCE), bpy.app.version_string]).encode()).hexdigest()[:10]
     refs = {i: reference(sim, poses, i, args.cache / f"ref-{args.seed}-orbit{i}-{key}.npy") for i in args.frames}
     if args.references_only:
         return
     print(f"medium site of seed {args.seed}, orbit frames {args.frames}, {RESOLUTION[0]}x{RESOLUTION[1]}, "
-          f"device {sim.render_device}" + (f", after with {overrides}" if overrides else ""), flush=True)
+          f"device {sim.render_device}" + (f", after with {overrides | raw}" if overrides or raw else ""), flush=True)
     for preset in args.presets:
-        before, raw = BEFORE[preset]
-        runs = {"before": (before, raw), "after": (resolve_settings(preset, **overrides), None)}
+        before, before_raw = BEFORE[preset]
+        runs = {"before": (before, raw_before | before_raw), "after": (resolve_settings(preset, **overrides), raw)}
         times = {k: [] for k in runs}
         cpu = {k: [] for k in runs}
         quality = {k: {} for k in runs}
