@@ -2,6 +2,8 @@
 of an existing frame (colour HALF, data FLOAT, ids UINT), its size, the time to write it
 with ``exporters.exr.write_frame`` and to read it back with ``exporters.exr.read_frame_exr``,
 for every lossless compression ``write_frame`` offers (checked: values read back equal).
+Then the whole frame with the default compression, single-threaded against OpenEXR's thread
+pool on every core (what ``exporters.exr`` turns on), alternating.
 
 Usage: .venv/bin/python benchmarks/frame_exr.py FRAME_EXR [--repeat 10]
 """
@@ -18,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
+import OpenEXR  # noqa: E402
 
 from exporters.exr import COMPRESSIONS, read_frame_exr, write_frame  # noqa: E402
 from exporters.modalities import MODALITIES  # noqa: E402
@@ -58,6 +61,21 @@ def main() -> None:
                 assert all(np.array_equal(back[k], v, equal_nan=True) for k, v in outputs.items()), compression
                 print(f"| {part} ({', '.join(outputs)}) | {compression} | {path.stat().st_size / 1e6:.2f} MB | "
                       f"{write:.1f} ms | {read:.1f} ms |")
+        threads_table(frame, labels, Path(tmp) / "frame.exr", args.repeat)
+
+
+def threads_table(frame: dict, labels: dict, path: Path, repeat: int) -> None:
+    pool = OpenEXR.global_thread_count()
+    times: dict[int, list[tuple[float, float]]] = {0: [], pool: []}
+    for _ in range(3):
+        for threads in times:
+            OpenEXR.set_global_thread_count(threads)
+            times[threads].append((best_ms(lambda: write_frame(path, frame, "zip", labels), repeat),
+                                   best_ms(lambda: read_frame_exr(path), repeat)))
+    OpenEXR.set_global_thread_count(pool)
+    print("\n| whole frame, zip | write | read |\n|---|---|---|")
+    for threads, runs in times.items():
+        print(f"| OpenEXR threads {threads} | {min(r[0] for r in runs):.1f} ms | {min(r[1] for r in runs):.1f} ms |")
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ exactly the arrays that were written, keyed by modality name.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,18 @@ ATTRIBUTES = {
     "buildee/pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
 }
 PART_NAMES = tuple(PART_OF_TYPE.values())  # colour (HALF), data (FLOAT), ids (UINT)
+
+
+def use_all_cores() -> None:
+    """Let OpenEXR compress and decompress line blocks on every core this process may use
+    (its global thread pool; the library's default is none). The bytes written do not depend
+    on the thread count (tested). A count set by the caller (non-zero) is kept."""
+    if OpenEXR.global_thread_count() == 0:
+        OpenEXR.set_global_thread_count(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                        else os.cpu_count() or 1)
+
+
+use_all_cores()
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",

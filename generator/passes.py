@@ -87,6 +87,10 @@ def read_blender_exr(path: str | Path) -> RawPasses:
     """Read the multilayer EXR that Blender wrote for a render (all parts)."""
     import OpenEXR
 
+    from exporters.exr import use_all_cores
+
+    use_all_cores()
+
     channels: dict[str, np.ndarray] = {}
     manifest: dict[str, int] = {}
     with OpenEXR.File(str(path), separate_channels=True) as f:

@@ -194,3 +194,35 @@ def test_ply_round_trip_ascii_big_endian_and_polygons(tmp_path):
     (tmp_path / "e.ply").write_bytes(b"solid cube\n")
     with pytest.raises(PlyError, match="not a PLY file"):
         read_ply(tmp_path / "e.ply")
+
+
+def test_frame_exr_bytes_do_not_depend_on_openexr_threads(tmp_path):
+    """exporters.exr turns on OpenEXR's thread pool (one thread per core); the files written
+    must be byte-identical to single-threaded ones, and read back exactly, for every compression."""
+    import OpenEXR
+
+    from exporters.exr import COMPRESSIONS, use_all_cores, write_frame
+
+    rng = np.random.default_rng(3)
+    h, w = 97, 61  # several line blocks of every compression, odd sizes
+    outs = {"rgb_linear": rng.random((h, w, 3)).astype(np.float32), "depth": rng.random((h, w)).astype(np.float32),
+            "flow": rng.normal(size=(h, w, 2)).astype(np.float32), "label": rng.integers(-1, 9, (h, w)).astype(np.int32)}
+    before = OpenEXR.global_thread_count()
+    assert before >= 1  # importing exporters.exr turned the pool on
+    try:
+        for compression in COMPRESSIONS:
+            files = {}
+            for threads in (0, 3):
+                OpenEXR.set_global_thread_count(threads)
+                files[threads] = write_frame(tmp_path / f"{compression}-{threads}.exr", outs, compression=compression)
+            assert files[0].read_bytes() == files[3].read_bytes(), compression
+            back = read_frame_exr(files[3])
+            np.testing.assert_array_equal(back["depth"], outs["depth"])
+            np.testing.assert_array_equal(back["flow"], outs["flow"])
+            np.testing.assert_array_equal(back["label"], outs["label"])
+            np.testing.assert_array_equal(back["rgb_linear"], outs["rgb_linear"].astype(np.float16))
+        OpenEXR.set_global_thread_count(5)
+        use_all_cores()  # a count the caller chose is kept
+        assert OpenEXR.global_thread_count() == 5
+    finally:
+        OpenEXR.set_global_thread_count(before)
