@@ -203,14 +203,23 @@ def _threads() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
 
 
+def _checked(points: np.ndarray, name: str) -> np.ndarray:
+    points = np.ascontiguousarray(points, np.float64)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"KDTree: {name} must have shape (N, 3), got {points.shape}")
+    if not np.isfinite(points).all():
+        raise ValueError(f"KDTree: {name} contain NaN or infinite coordinates; drop or fix those rows")
+    return points
+
+
 class KDTree:
     """Exact nearest-neighbour queries against ``points`` (N, 3), N >= 1, float64. Many equal
     points make a leaf that is scanned whole: query the distinct points only."""
 
     def __init__(self, points: np.ndarray, leaf_size: int = LEAF_SIZE):
-        points = np.ascontiguousarray(points, np.float64)
-        if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
-            raise ValueError(f"KDTree needs points of shape (N, 3) with N >= 1, got {points.shape}")
+        points = _checked(points, "points")
+        if len(points) == 0:
+            raise ValueError("KDTree needs at least one point")
         self.size = len(points)
         self._tree = _build(points, int(leaf_size))
 
@@ -222,7 +231,7 @@ class KDTree:
 
     def _run(self, queries: np.ndarray, bound: np.ndarray, manhattan: bool,
              order: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        queries = np.ascontiguousarray(queries, np.float64)
+        queries = _checked(queries, "queries")
         n = len(queries)
         out_d, out_i = np.empty(n), np.empty(n, np.int64)
         if n == 0:

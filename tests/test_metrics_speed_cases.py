@@ -137,3 +137,13 @@ def test_100k_duplicate_points_score_in_seconds():
     assert acc == pytest.approx(acc_ref, abs=1e-12)
     assert comp == pytest.approx(comp_ref, rel=1e-12)
     assert l1 == pytest.approx(l1_ref, rel=1e-12)
+
+
+def test_kdtree_refuses_non_finite_coordinates():
+    tree = KDTree(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="queries contain NaN"):
+        tree.nearest(np.array([[0.0, np.nan, 0.0]]))
+    with pytest.raises(ValueError, match="points contain NaN"):
+        KDTree(np.array([[0.0, 0.0, np.inf]]))
+    with pytest.raises(ValueError, match="shape"):
+        KDTree(np.zeros((4, 2)))
