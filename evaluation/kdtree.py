@@ -65,9 +65,9 @@ def _build(points, leaf_size):
             child[node] = -1
             node += 1
             continue
-        # midpoint of the tight box: both sides get at least one point
-        mid = lo[node, axis] + 0.5 * (hi[node, axis] - lo[node, axis])
-        if mid <= lo[node, axis]:
+        # midpoint of the tight box (lo < mid <= hi): both sides get at least one point
+        mid = 0.5 * lo[node, axis] + 0.5 * hi[node, axis]
+        if not (lo[node, axis] < mid <= hi[node, axis]):
             mid = hi[node, axis]
         i, j = s, e - 1
         while i <= j:

@@ -139,6 +139,15 @@ def test_100k_duplicate_points_score_in_seconds():
     assert l1 == pytest.approx(l1_ref, rel=1e-12)
 
 
+def test_kdtree_on_extents_beyond_the_float_range():
+    """Boxes wider than the largest float (their midpoints must not overflow) still split."""
+    pts = np.array([[-1e308, 0, 0], [1e308, 0, 0], [0, 1e308, -1e308], [5.0, 5.0, 5.0], [0, 0, 1e300]])
+    tree = KDTree(pts, leaf_size=1)
+    queries = np.array([[4.0, 4.0, 4.0], [6.0, 5.0, 5.0]])
+    assert tree.nearest(queries).tolist() == [3, 3]
+    assert tree.nearest_manhattan(queries, np.full(2, np.inf)).tolist() == [3.0, 1.0]
+
+
 def test_kdtree_refuses_non_finite_coordinates():
     tree = KDTree(np.zeros((3, 3)))
     with pytest.raises(ValueError, match="queries contain NaN"):
