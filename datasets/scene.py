@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters import FORMAT_VERSION
+from exporters import FORMAT_VERSION, VERSION_REMEDY
 from exporters.frames import FrameReader, frame_names
 from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
 from exporters.manifest import read_manifest
@@ -206,7 +206,7 @@ class Scene:
         version = manifest.get("format_version")
         if version not in SUPPORTED_VERSIONS:
             raise DatasetError(f"{self.path}: format_version {version!r}; this reader reads "
-                               f"{', '.join(SUPPORTED_VERSIONS)} (update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+                               f"{', '.join(SUPPORTED_VERSIONS)} ({VERSION_REMEDY})")
         self.manifest = manifest
         try:
             self.seed = int(manifest["seed"])

@@ -4,3 +4,6 @@
 manifest carry it."""
 
 FORMAT_VERSION = "0.5"
+# what a reader tells a user whose file has another format version
+VERSION_REMEDY = ("update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, "
+                  "with the options it was made with")

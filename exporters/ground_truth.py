@@ -29,7 +29,7 @@ from generator.geometry.parts import MeshPart
 from generator.geometry.sampling import ground_height, outward_normals, sample_part
 from generator.geometry.seeding import stream
 
-from . import FORMAT_VERSION
+from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import CHECKSUM, H5_ERRORS, create_file, damaged, dataset, reason, text_attribute
 from .palette import label_colors
 from .ply import PlyData, read_ply, write_ply
@@ -249,8 +249,8 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
         with h5py.File(folder / "scene.h5", "r") as f:
             version = f.attrs.get("format_version")
             if version != FORMAT_VERSION:
-                raise GroundTruthError(f"{folder / 'scene.h5'}: ground-truth format {version!r}, this reader reads {FORMAT_VERSION} "
-                                       "(update buildee-sites, or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+                raise GroundTruthError(f"{folder / 'scene.h5'}: ground-truth format {version!r}, this reader reads "
+                                       f"{FORMAT_VERSION} ({VERSION_REMEDY})")
             g = f["parts"]
             V, F = g["vertices"][()], g["faces"][()]
             vo, fo = g["vertex_offsets"][()], g["face_offsets"][()]

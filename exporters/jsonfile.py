@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from . import FORMAT_VERSION
+from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import REMEDY, DamagedFileError
 
 
@@ -23,5 +23,4 @@ def read_json_file(path: Path, what: str):
 def check_format_version(path: Path, version) -> None:
     """Refuse a file written by another format version, saying how to regenerate it."""
     if version != FORMAT_VERSION:
-        raise DamagedFileError(f"{path}: format {version!r}, this reader reads {FORMAT_VERSION} (regenerate the "
-                               "seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+        raise DamagedFileError(f"{path}: format {version!r}, this reader reads {FORMAT_VERSION} ({VERSION_REMEDY})")

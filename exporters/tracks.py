@@ -36,7 +36,7 @@ import numpy as np
 
 from generator.geometry.camera import project
 
-from . import FORMAT_VERSION
+from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, attribute, create_file, damaged, dataset, group, open_file, read,
                    reason, text, text_attribute, verify)
 
@@ -225,8 +225,7 @@ def read_tracks(path: str | Path) -> dict:
 
 
 def _version_error(path: Path, version) -> DamagedFileError:
-    return DamagedFileError(f"{path}: format_version {version!r}; this reader reads {FORMAT_VERSION} (update buildee-sites, "
-                            "or regenerate the seed: python -m generator --seeds N --overwrite, with the options it was made with)")
+    return DamagedFileError(f"{path}: format_version {version!r}; this reader reads {FORMAT_VERSION} ({VERSION_REMEDY})")
 
 
 class TrackReader:
