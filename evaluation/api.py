@@ -18,6 +18,7 @@ from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, fscore, iou_per_cl
 
 
 def versions() -> dict:
+    import numba
     import scipy
 
     from exporters import FORMAT_VERSION
@@ -28,7 +29,8 @@ def versions() -> dict:
         ours = version("buildee-sites")
     except Exception:  # not installed (running from a checkout)
         ours = "unknown"
-    return {"buildee-sites": ours, "format_version": FORMAT_VERSION, "numpy": np.__version__, "scipy": scipy.__version__}
+    return {"buildee-sites": ours, "format_version": FORMAT_VERSION, "numpy": np.__version__, "scipy": scipy.__version__,
+            "numba": numba.__version__}
 
 
 def _seed_folder_gt(folder: Path) -> Path:

@@ -176,7 +176,7 @@ def test_cli_writes_json_and_figure9_ply(seed_folder, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "Semantic Chamfer pred -> GT" in r.stdout and "Read blend" not in r.stdout
     doc = json.loads((tmp_path / "r.json").read_text())
-    assert doc["parameters"]["crop"] and doc["parameters"]["tau"] == 0.1 and doc["versions"]["numpy"]
+    assert doc["parameters"]["crop"] and doc["parameters"]["tau"] == 0.1 and doc["versions"]["numpy"] and doc["versions"]["numba"]
     assert doc["metrics"]["semantic"]["semantic_chamfer_gt_to_pred"] == pytest.approx(1 - 10 / len(labels))
     fig = read_ply(tmp_path / "fig9.ply")
     assert np.count_nonzero(fig.vertex["match"] == 1) == 10 and np.count_nonzero(fig.vertex["match"] == 2) == 0
