@@ -13,8 +13,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-if "open3d" in sys.modules and "bpy" not in sys.modules:
-    # open3d's libtbb is already loaded and bpy would fail with an undefined TBB symbol.
+_o3d = sys.modules.get("generator.geometry.o3d")
+if "open3d" in sys.modules and "bpy" not in sys.modules and not getattr(_o3d, "bpy_tbb_loaded", False):
+    # open3d's libtbb is already loaded and bpy would fail with an undefined TBB symbol (unless
+    # generator.geometry.o3d.import_open3d loaded bpy's own libtbb first).
     raise ImportError(
         "open3d was imported before bpy; import generator (or bpy) first, or load open3d "
         "through generator.geometry.o3d.import_open3d()"

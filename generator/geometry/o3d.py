@@ -13,7 +13,11 @@ import os
 import sys
 
 
+bpy_tbb_loaded = False  # True once bpy's libtbb is loaded: bpy can then be imported after open3d
+
+
 def _preload_bpy_tbb() -> None:
+    global bpy_tbb_loaded
     spec = importlib.util.find_spec("bpy")
     if spec is None or spec.origin is None:
         return
@@ -23,6 +27,7 @@ def _preload_bpy_tbb() -> None:
     for name in sorted(os.listdir(libdir)):
         if name.startswith("libtbb") and ".so" in name:
             ctypes.CDLL(os.path.join(libdir, name), mode=ctypes.RTLD_GLOBAL)
+            bpy_tbb_loaded = True
 
 
 def import_open3d():
