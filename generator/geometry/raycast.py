@@ -129,18 +129,27 @@ class SceneGeometry:
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origin
         np.multiply(delta, keep[:, None], out=rays[:, 3:], casting="same_kind")
-        blocked = np.zeros(n, dtype=bool)
+        return self.rays_blocked(rays) & (keep > 0)
+
+    def rays_blocked(self, rays: np.ndarray) -> np.ndarray:
+        """For each float32 ray (N, 6) [origin, direction]: does the segment from the origin
+        to origin + direction (t in [0, 1]) hit any triangle? Returns (N,) bool."""
+        blocked = np.zeros(len(rays), dtype=bool)
+        if len(rays) == 0:
+            return blocked
         open_ = None  # rays not blocked yet (None: all); each scene tests only those
         for scene in self._scenes():
-            t_rays = _tensor(rays if open_ is None else rays[open_])
-            hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().astype(bool, copy=True)
+            if open_ is not None and len(open_) == 0:
+                break
+            t_rays = _tensor(rays if open_ is None else np.take(rays, open_, axis=0))
+            hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().view(bool)
             if open_ is None:
-                blocked = hit
+                blocked = hit.copy()
                 open_ = np.flatnonzero(~hit)
             else:
                 blocked[open_[hit]] = True
                 open_ = open_[~hit]
-        return blocked & (keep > 0)
+        return blocked
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (N,) in metres from each point to the nearest triangle."""
