@@ -11,7 +11,7 @@ from generator.geometry.camera import project as cam_project
 from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
 from generator.geometry.surface_points import SurfacePoints
-from generator.geometry.visibility import ViewLimits, visible_points
+from generator.geometry.visibility import ViewLimits, VisibilityStats, visible_points
 
 
 @pytest.fixture(scope="module")
@@ -127,6 +127,62 @@ def test_dynamic_occluder_hides_points():
     assert not visible_points(geo, probe, None, None, pose, K, 64, 48)[0]
 
 
+def test_point_groups_equal_one_ray_per_point_on_exact_boundaries():
+    """Points exactly on the image borders, on the depth limits and on a solid's face whose
+    plane passes through the camera: the point groups (decisions per group only with a
+    margin) give the same bits as testing every point, and the boundaries fall where the
+    rules put them (u = 0 in, u = W z out, z = far in, z = near out; n . (p - c) = 0 is not
+    rule 3)."""
+    ground = MeshPart("Ground", "Ground", np.array([[-500, -500, -20], [500, -500, -20], [500, 500, -20],
+                                                   [-500, 500, -20.0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    v = np.array([[x, y, z] for x in (0, 2) for y in (5, 7) for z in (-1, 1)], float)
+    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    box = MeshPart("Box", "Box", v, f, closed=True)
+    geo = SceneGeometry([ground, box])
+    pose = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1.0]])  # at the origin, looking along +Y
+    K = np.array([[50, 0, 32], [0, 50, 24], [0, 0, 1.0]])
+    limits = ViewLimits(1.0, 40.0)
+    rng = np.random.default_rng(3)
+    j = np.repeat(np.arange(1, 7), 60).astype(float)  # depths 6.25 j m: every product below is exact
+    zs = rng.uniform(-1, 1, len(j)) * j
+    sets = {  # name: (points, expected visible; nothing stands between them and the camera)
+        "left border": (np.c_[-4 * j, 6.25 * j, zs], True),      # u = 50 x + 32 y = 0
+        "left outside": (np.c_[-4 * j - 1e-6, 6.25 * j, zs], False),
+        "right border": (np.c_[4 * j, 6.25 * j, zs], False),     # u = 50 x + 32 y = 64 y = W z
+        "far limit": (np.c_[rng.uniform(-5, -1, 200), np.full(200, 40.0), rng.uniform(-5, 5, 200)], True),
+        "near limit": (np.c_[rng.uniform(-0.3, 0.3, 200), np.full(200, 1.0), rng.uniform(-0.3, 0.3, 200)], False),
+    }
+    points = np.concatenate([p for p, _ in sets.values()])
+    normals = np.zeros_like(points)
+    part = np.zeros(len(points), dtype=np.int32)
+    # on the box: its face x = 0 (plane through the camera), its front y = 5 and back y = 7
+    face = np.c_[np.zeros(300), rng.uniform(5, 7, 300), rng.uniform(-1, 1, 300)]
+    front = np.c_[rng.uniform(0, 2, 300), np.full(300, 5.0), rng.uniform(-1, 1, 300)]
+    back = np.c_[rng.uniform(0, 2, 300), np.full(300, 7.0), rng.uniform(-1, 1, 300)]
+    points = np.concatenate([points, face, front, back])
+    normals = np.concatenate([normals, np.tile([-1.0, 0, 0], (300, 1)), np.tile([0, -1.0, 0], (300, 1)),
+                              np.tile([0, 1.0, 0], (300, 1))])
+    part = np.concatenate([part, np.ones(900, dtype=np.int32)])
+    stats = VisibilityStats()
+    fast = visible_points(geo, points, normals, part, pose, K, 64, 48, limits, stats)
+    ref = visible_points(geo, points, normals, part, pose, K, 64, 48, limits, ray_per_point=True)
+    assert np.array_equal(fast, ref)
+    start = 0
+    for name, (p, expected) in sets.items():
+        assert fast[start:start + len(p)].all() == expected and fast[start:start + len(p)].any() == expected, name
+        start += len(p)
+    on_face, on_front, on_back = np.split(np.arange(start, len(points)), 3)
+    assert stats.culled_backfacing == 300 and not fast[on_back].any()
+    assert fast[on_front].all()
+    # the boundary sets and the face seen edge-on are tested point by point; the front and
+    # back faces (wholly in view, facing one way) are settled per group
+    assert len(points) - 600 <= stats.tested_one_by_one <= len(points) - 500
+    # the face seen edge-on is decided by rays (not rule 3): the same answers as without normals
+    edge_on = visible_points(geo, points[on_face], None, None, pose, K, 64, 48, limits)
+    assert np.array_equal(fast[on_face], edge_on)
+
+
 @pytest.fixture(scope="module")
 def small_site(tmp_path_factory):
     from generator.scene import build_site
@@ -169,7 +225,7 @@ def test_blocks_and_reused_answers_equal_one_ray_per_point_while_exploring(small
     sim.respawn_camera()
     rng = np.random.default_rng(5)
     limits = ViewLimits(sim.clip_start, min(sim.clip_end, sim.max_pcl_depth))
-    turned = visible = 0
+    turned = visible = in_view = one_by_one = 0
     for step in range(30):
         action = rng.integers(0, 3)
         if action == 0:
@@ -190,4 +246,7 @@ def test_blocks_and_reused_answers_equal_one_ray_per_point_while_exploring(small
                              sim.get_world_from_camera(), sim.K, sim.width, sim.height, limits, ray_per_point=True)
         assert np.array_equal(vis, ref)
         visible += int(vis.sum())
+        in_view += sim.last_visibility.in_view
+        one_by_one += sim.last_visibility.tested_one_by_one
     assert turned > 3 and visible > 1000
+    assert 0 < one_by_one < 0.9 * in_view  # the groups settle rules 1-3 for most points in view

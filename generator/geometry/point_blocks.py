@@ -30,6 +30,10 @@ from .visibility_rules import (
 SUB = 16
 BLOCK = 128
 
+# Blocks in view are visited in screen tiles of TILE x TILE pixels (row by row), so that
+# consecutive rays go in similar directions (~5% faster than in Morton order, measured).
+TILE = 32
+
 # A group counts as wholly inside a half-space (or wholly facing one way) only if it is so
 # by this share of the magnitudes involved: far above the round-off of the per-point tests
 # (~1e-15 relative), so that skipping them never changes an answer.
@@ -58,10 +62,18 @@ class PointBlocks:
         sorted_part = part[self.order]
         self.part_index = part_index
         # groups: start where the part changes or every SUB points within a part
-        self.start, self.size = _runs(sorted_part, SUB)
-        self.group_part = sorted_part[self.start]
-        # blocks: every BLOCK // SUB groups of one part
-        self.block_first, self.block_groups = _runs(self.group_part, BLOCK // SUB)
+        start, size = _runs(sorted_part, SUB)
+        # the groups themselves in Morton order of their first point, across parts: rays
+        # cast in group order then sweep space coherently
+        first = np.take(key, np.take(self.order, start))
+        groups = np.argsort(first, kind="stable")
+        self.order = np.take(self.order, positions(start[groups], size[groups]))
+        self.size = size[groups]
+        self.start = np.cumsum(self.size) - self.size
+        self.group_part = np.take(sorted_part, start[groups])
+        # blocks: every BLOCK // SUB consecutive groups
+        self.block_first = np.arange(0, len(self.start), BLOCK // SUB)
+        self.block_groups = np.diff(np.r_[self.block_first, len(self.start)])
         self.points = self.normals = None
         self._answers, self._answers_key, self._known = None, None, 0
         self.set_points(points, normals)
@@ -103,41 +115,7 @@ class PointBlocks:
                 height: int, limits: ViewLimits, stats: VisibilityStats | None = None) -> np.ndarray:
         """Visibility mask (N,) in the caller's point order (see :func:`.visibility.visible_points`)."""
         n = len(self.order)
-        view = _View(r, centre, K, width, height, limits)
-        groups, edge = self._groups_in_view(view)
-        in_view_count = culled = 0
-        away = mixed = None
-        if self.nxyz is not None and len(groups):
-            cullable = cullable_parts(geometry, centre)[self.group_part[groups]]
-            if cullable.any():
-                away, mixed = self._groups_facing_away(groups, centre)
-                away &= cullable
-                mixed &= cullable
-                # groups wholly in view and wholly on the back of a solid: settled and counted
-                settled = away & ~edge
-                if settled.any():
-                    in_view_count = culled = int(self.size[groups[settled]].sum())
-                    live = np.flatnonzero(~settled)
-                    groups, edge, away, mixed = groups[live], edge[live], away[live], mixed[live]
-        sizes = self.size[groups]
-        pos = positions(self.start[groups], sizes)
-        keep = np.ones(len(pos), dtype=bool)
-        if edge.any():  # rules 1 and 2 point by point in the groups on the view's edges
-            test = np.flatnonzero(np.repeat(edge, sizes))
-            keep[test] = in_view(*self._offsets(np.take(pos, test), centre), r, K, width, height, limits)
-        in_view_count += int(np.count_nonzero(keep))
-        if away is not None and away.any():  # on the view's edges, on the back of a solid
-            back = np.repeat(away, sizes) & keep
-            culled += int(np.count_nonzero(back))
-            keep &= ~back
-        if mixed is not None and mixed.any():  # rule 3 point by point
-            test = np.flatnonzero(np.repeat(mixed, sizes) & keep)
-            p = np.take(pos, test)
-            back = facing_away(*(np.take(self.nxyz[k], p) for k in range(3)), *self._offsets(p, centre))
-            culled += int(np.count_nonzero(back))
-            keep[test] = ~back
-        if not keep.all():
-            pos = np.take(pos, np.flatnonzero(keep))
+        pos, counts = self._rules_1_to_3(geometry, r, centre, K, width, height, limits)
         # rules 3 and 4 depend on the camera centre, not on its orientation: ray answers
         # found earlier from this centre (same geometry state) are reused (1 visible, 2 hidden)
         answers = self._answers_for(centre, geometry.version)
@@ -155,9 +133,59 @@ class PointBlocks:
         if len(reused):
             mask[np.take(self.order, reused)] = True
         if stats is not None:
-            stats.tested, stats.in_view, stats.culled_backfacing = n, in_view_count, culled
+            stats.tested, (stats.in_view, stats.culled_backfacing, stats.tested_one_by_one) = n, counts
             stats.rays, stats.visible = len(pos), int(np.count_nonzero(mask))
         return mask
+
+    def _rules_1_to_3(self, geometry: SceneGeometry, r: np.ndarray, centre: np.ndarray, K: np.ndarray, width: int,
+                      height: int, limits: ViewLimits) -> tuple[np.ndarray, tuple[int, int, int]]:
+        """Positions (group order) of the points that pass rules 1-3, and the counts (in
+        view, hidden by rule 3, tested one by one)."""
+        groups, edge = self._groups_in_view(_View(r, centre, K, width, height, limits))
+        away = mixed = None
+        if self.nxyz is not None and len(groups):
+            cullable = cullable_parts(geometry, centre)[self.group_part[groups]]
+            if cullable.any():
+                away, mixed = self._groups_facing_away(groups, centre)
+                away &= cullable
+                mixed &= cullable
+        # clean groups (wholly in view, rule 3 settled as "facing the camera" or moot) need no
+        # per-point test; groups wholly in view and on the back of a solid are only counted
+        todo = edge if away is None else edge | away | mixed
+        clean = np.take(groups, np.flatnonzero(~todo))
+        pos_clean = positions(self.start[clean], self.size[clean])
+        in_view_count = len(pos_clean)
+        culled = 0
+        if away is not None:
+            settled = np.take(groups, np.flatnonzero(away & ~edge))
+            culled = in_view_count_away = int(self.size[settled].sum())
+            in_view_count += in_view_count_away
+            todo &= ~(away & ~edge)
+        which = np.flatnonzero(todo)
+        if len(which) == 0:
+            return pos_clean, (in_view_count, culled, 0)
+        groups, edge = np.take(groups, which), np.take(edge, which)
+        sizes = self.size[groups]
+        pos = positions(self.start[groups], sizes)
+        keep = np.ones(len(pos), dtype=bool)
+        if edge.any():  # rules 1 and 2 point by point in the groups on the view's edges
+            test = np.flatnonzero(np.repeat(edge, sizes))
+            keep[test] = in_view(*self._offsets(np.take(pos, test), centre), r, K, width, height, limits)
+        in_view_count += int(np.count_nonzero(keep))
+        if away is not None:
+            away, mixed = np.take(away, which), np.take(mixed, which)
+            if away.any():  # on the view's edges, on the back of a solid
+                back = np.repeat(away, sizes) & keep
+                culled += int(np.count_nonzero(back))
+                keep &= ~back
+            if mixed.any():  # rule 3 point by point
+                test = np.flatnonzero(np.repeat(mixed, sizes) & keep)
+                p = np.take(pos, test)
+                back = facing_away(*(np.take(self.nxyz[k], p) for k in range(3)), *self._offsets(p, centre))
+                culled += int(np.count_nonzero(back))
+                keep[test] = ~back
+        counts = (in_view_count, culled, len(pos))
+        return np.concatenate([pos_clean, np.take(pos, np.flatnonzero(keep))]), counts
 
     def _offsets(self, pos: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The points at ``pos`` (group order) minus the camera centre, axis by axis."""
@@ -177,6 +205,9 @@ class PointBlocks:
         """The groups whose box meets the view (rules 1 and 2), and for each whether it is
         on the view's edge (its points need the per-point test)."""
         blocks, block_edge = view.boxes(self.block_box)
+        if len(blocks) > 1:  # rays toward neighbouring blocks on screen traverse the same nodes
+            order = view.tile_order(np.take(self.block_box.centre, blocks, axis=1))
+            blocks, block_edge = np.take(blocks, order), np.take(block_edge, order)
         counts = self.block_groups[blocks]
         groups = positions(self.block_first[blocks], counts)
         edge = np.repeat(block_edge, counts)
@@ -225,6 +256,7 @@ class _View:
 
     def __init__(self, r: np.ndarray, c: np.ndarray, K: np.ndarray, width: int, height: int, limits: ViewLimits):
         a_z, a_u, a_v = view_planes(r, K, width, height)
+        self.rows, self.c, self.width = np.array([a_z, a_u, a_v]), c, width
         planes = [a_z, a_u, width * a_z - a_u, a_v, height * a_z - a_v]
         offsets = [-limits.near, 0.0, 0.0, 0.0, 0.0]
         if np.isfinite(limits.far):
@@ -234,6 +266,15 @@ class _View:
         self.abs_a = np.abs(self.a)
         self.b = (np.array(offsets) - self.a @ c)[:, None]
         self.slack = (MARGIN * (self.abs_a @ np.abs(c) + np.abs(offsets)))[:, None]
+
+    def tile_order(self, p: np.ndarray) -> np.ndarray:
+        """Order of world points (3, M) in front of the camera by screen tile (TILE x TILE
+        pixels, row by row; points off screen are clamped to the border tiles)."""
+        z, u, v = self.rows @ (p - self.c[:, None])
+        scale = (1.0 / TILE) / np.maximum(z, 1e-9)
+        cols = int(self.width) // TILE + 1
+        tile = np.clip(v * scale, 0, 4095).astype(np.int32) * cols + np.clip(u * scale, 0, cols - 1).astype(np.int32)
+        return np.argsort(tile, kind="stable")
 
     def boxes(self, boxes: _Boxes, which: np.ndarray | None = None, keep_all: bool = False):
         """For the boxes ``which`` (default: all): those meeting every half-space (their
@@ -246,11 +287,12 @@ class _View:
             centre, half, extent = (np.take(x, which, axis=1) for x in (boxes.centre, boxes.half, boxes.extent))
         mid = self.a @ centre + self.b  # (planes, M)
         spread = self.abs_a @ half
-        meets = np.logical_and.reduce(mid + spread >= 0, axis=0)
+        margin = MARGIN * (self.abs_a @ extent) + self.slack
+        # culled only if outside some half-space by the margin; inside only if inside all by it
+        meets = np.logical_and.reduce(mid + spread >= -margin, axis=0)
         if not keep_all:
             live = np.flatnonzero(meets)
-            which, mid, spread, extent = which[live], mid[:, live], spread[:, live], extent[:, live]
-        margin = MARGIN * (self.abs_a @ extent) + self.slack
+            which, mid, spread, margin = which[live], mid[:, live], spread[:, live], margin[:, live]
         edge = ~np.logical_and.reduce(mid - spread > margin, axis=0)
         return (meets if keep_all else which), edge
 

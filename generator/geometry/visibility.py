@@ -91,6 +91,7 @@ def visible_points(
     mask[idx[~blocked]] = True
     if stats is not None:
         stats.tested, stats.in_view, stats.culled_backfacing = n, count_in_view, culled
+        stats.tested_one_by_one = n
         stats.rays, stats.visible = len(idx), int(mask.sum())
     return mask
 

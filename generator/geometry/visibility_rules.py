@@ -28,13 +28,16 @@ class VisibilityStats:
     """Counts from the last call, to understand where the time goes: points in all
     (``tested``), passing rules 1-2 (``in_view``), then hidden by rule 3 without a ray
     (``culled_backfacing``), occlusion rays cast (``rays``; answers reused from the same
-    camera centre are not counted) and visible points."""
+    camera centre are not counted) and visible points; ``tested_one_by_one``: points
+    whose rules 1-3 were tested point by point (with point groups, those of the groups that
+    their box and normal cone did not settle; without, all)."""
 
     tested: int = 0
     in_view: int = 0
     culled_backfacing: int = 0
     rays: int = 0
     visible: int = 0
+    tested_one_by_one: int = 0
 
 
 def view_planes(r: np.ndarray, K: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
