@@ -1,12 +1,12 @@
 """Visibility speed: Simulator.compute_point_cloud against the paper's method and the plain approach.
 
-On two scenes, measured in one run per scene (one Simulator per process at a time):
+On two scenes, each measured in a fresh process of its own (one Simulator per process):
 - "bench": built in code, >= 1M triangles (a subdivided ground, dense spheres and boxes, a
   few moving objects), 45 points/m2 (>= 1M points), 10 poses turning on the spot;
 - "site": the medium procedural site of seed 0 at the batch job's density (2 points/m2,
   60 m depth limit), poses from its orbit and spline trajectories (every 4th of 40 + 40).
 
-Per pose, all timed on the same points and pose:
+Per pose, all timed on the same points and pose (ours and plain take turns going first):
 - ours: ``compute_point_cloud`` (all N points);
 - plain: numpy projection and frustum/depth cull of all N points, then one open3d
   ``test_occlusions`` call for every point in the frustum (timed whole);
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import subprocess
 import sys
 import tempfile
 import time
@@ -237,6 +238,10 @@ def main() -> None:
     ap.add_argument("--scenes", nargs="+", choices=["bench", "site"], default=["bench", "site"])
     ap.add_argument("--subset", type=int, default=2000, help="points per pose timed with the paper's loop")
     args = ap.parse_args()
+    if len(args.scenes) > 1:  # one process per scene: no scene runs in the other's leftovers
+        for name in args.scenes:
+            subprocess.run([sys.executable, __file__, "--scenes", name, "--subset", str(args.subset)], check=True)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.scenes:
             if name == "bench":

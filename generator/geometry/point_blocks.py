@@ -30,10 +30,6 @@ from .visibility_rules import (
 SUB = 16
 BLOCK = 128
 
-# Blocks in view are visited in screen tiles of TILE x TILE pixels (row by row), so that
-# consecutive rays go in similar directions (~5% faster than in Morton order, measured).
-TILE = 32
-
 # A group counts as wholly inside a half-space (or wholly facing one way) only if it is so
 # by this share of the magnitudes involved: far above the round-off of the per-point tests
 # (~1e-15 relative), so that skipping them never changes an answer.
@@ -62,18 +58,10 @@ class PointBlocks:
         sorted_part = part[self.order]
         self.part_index = part_index
         # groups: start where the part changes or every SUB points within a part
-        start, size = _runs(sorted_part, SUB)
-        # the groups themselves in Morton order of their first point, across parts: rays
-        # cast in group order then sweep space coherently
-        first = np.take(key, np.take(self.order, start))
-        groups = np.argsort(first, kind="stable")
-        self.order = np.take(self.order, positions(start[groups], size[groups]))
-        self.size = size[groups]
-        self.start = np.cumsum(self.size) - self.size
-        self.group_part = np.take(sorted_part, start[groups])
-        # blocks: every BLOCK // SUB consecutive groups
-        self.block_first = np.arange(0, len(self.start), BLOCK // SUB)
-        self.block_groups = np.diff(np.r_[self.block_first, len(self.start)])
+        self.start, self.size = _runs(sorted_part, SUB)
+        self.group_part = sorted_part[self.start]
+        # blocks: every BLOCK // SUB groups of one part
+        self.block_first, self.block_groups = _runs(self.group_part, BLOCK // SUB)
         self.points = self.normals = None
         self._answers, self._answers_key, self._known = None, None, 0
         self.set_points(points, normals)
@@ -205,9 +193,6 @@ class PointBlocks:
         """The groups whose box meets the view (rules 1 and 2), and for each whether it is
         on the view's edge (its points need the per-point test)."""
         blocks, block_edge = view.boxes(self.block_box)
-        if len(blocks) > 1:  # rays toward neighbouring blocks on screen traverse the same nodes
-            order = view.tile_order(np.take(self.block_box.centre, blocks, axis=1))
-            blocks, block_edge = np.take(blocks, order), np.take(block_edge, order)
         counts = self.block_groups[blocks]
         groups = positions(self.block_first[blocks], counts)
         edge = np.repeat(block_edge, counts)
@@ -256,7 +241,6 @@ class _View:
 
     def __init__(self, r: np.ndarray, c: np.ndarray, K: np.ndarray, width: int, height: int, limits: ViewLimits):
         a_z, a_u, a_v = view_planes(r, K, width, height)
-        self.rows, self.c, self.width = np.array([a_z, a_u, a_v]), c, width
         planes = [a_z, a_u, width * a_z - a_u, a_v, height * a_z - a_v]
         offsets = [-limits.near, 0.0, 0.0, 0.0, 0.0]
         if np.isfinite(limits.far):
@@ -266,15 +250,6 @@ class _View:
         self.abs_a = np.abs(self.a)
         self.b = (np.array(offsets) - self.a @ c)[:, None]
         self.slack = (MARGIN * (self.abs_a @ np.abs(c) + np.abs(offsets)))[:, None]
-
-    def tile_order(self, p: np.ndarray) -> np.ndarray:
-        """Order of world points (3, M) in front of the camera by screen tile (TILE x TILE
-        pixels, row by row; points off screen are clamped to the border tiles)."""
-        z, u, v = self.rows @ (p - self.c[:, None])
-        scale = (1.0 / TILE) / np.maximum(z, 1e-9)
-        cols = int(self.width) // TILE + 1
-        tile = np.clip(v * scale, 0, 4095).astype(np.int32) * cols + np.clip(u * scale, 0, cols - 1).astype(np.int32)
-        return np.argsort(tile, kind="stable")
 
     def boxes(self, boxes: _Boxes, which: np.ndarray | None = None, keep_all: bool = False):
         """For the boxes ``which`` (default: all): those meeting every half-space (their
