@@ -138,10 +138,6 @@ def _inside_a_seed(out: Path) -> Path | None:
     return None
 
 
-def _interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["verify"]:
@@ -163,7 +159,7 @@ def main(argv=None) -> int:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
     from .batch.executors import ExecutorError, make_executor
-    from .batch.runner import Options, exit_code, run_seeds
+    from .batch.runner import Options, exit_code, interrupt, run_seeds
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
@@ -175,7 +171,8 @@ def main(argv=None) -> int:
     except ExecutorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    signal.signal(signal.SIGTERM, _interrupt)  # a polite kill cleans up like Ctrl-C
+    signal.signal(signal.SIGTERM, interrupt)  # a polite kill cleans up like Ctrl-C
+    signal.signal(signal.SIGINT, interrupt)
     try:
         results = run_seeds(args.out, seeds, cfg, opts, executor)
     except KeyboardInterrupt:

@@ -292,3 +292,55 @@ def test_blender_clamps_sides_below_4(tmp_path):
     assert sim.render().rgb.shape[:2] == (6, 4)
     sim.configure_render("preview", resolution=(3, 2))
     assert sim.render().rgb.shape[:2] != (2, 3)
+
+
+def test_ctrl_c_swallowed_inside_a_blocking_wait_still_stops_the_run(tmp_path):
+    """A library may catch the KeyboardInterrupt raised inside one of its blocking calls (Ray's
+    waits check signals from C++). The CLI's handler remembers the signal, so the run loop
+    stops at its next turn anyway: the executor is cancelled and the seed's lock released."""
+    import signal
+
+    from generator.batch import folders
+    from generator.batch.config import RunConfig
+    from generator.batch.executors import Executor, Outcome
+    from generator.batch.runner import Options, interrupt, run_seeds
+
+    class SwallowingExecutor(Executor):
+        """Takes the seed, then gets Ctrl-C during a wait that swallows it (never finishes)."""
+        name = "swallowing"
+
+        def __init__(self):
+            self.jobs, self.cancelled, self.waits = [], False, 0
+
+        def room(self):
+            return 1 - len(self.jobs)
+
+        def submit(self, job):
+            self.jobs.append(job)
+
+        def events(self, timeout):
+            self.waits += 1
+            if self.waits > 3:  # the interrupt was lost: let the seed end (and the test fail)
+                return [{"seed": 5, "event": "result", "outcome": Outcome(5, "failed", "never interrupted"),
+                         "attempts": 1}]
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(timeout)  # the handler runs here and raises...
+            except KeyboardInterrupt:
+                pass  # ...and the library swallows it
+            return []
+
+        def cancel_all(self):
+            self.cancelled = True
+
+    previous = signal.signal(signal.SIGINT, interrupt)
+    executor = SwallowingExecutor()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_seeds(tmp_path, [5], RunConfig(), Options(), executor)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert executor.waits == 1 and executor.cancelled and [j.seed for j in executor.jobs] == [5]
+    lock = folders.SeedLock.try_acquire(tmp_path, 5)  # the run let go of the seed
+    assert lock is not None
+    lock.release()

@@ -5,6 +5,7 @@ fresh worker process, the atomic commit), whose events feed the progress bars. b
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,6 +17,15 @@ from .executors import Executor, Outcome, SeedJob
 
 # exit codes of python -m generator (docs/guarantees.md); the most severe applies
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_LEFT_ALONE, EXIT_BUSY = 0, 1, 2, 3, 4
+INTERRUPTED = threading.Event()  # set by interrupt(); the run loop stops at its next turn
+
+
+def interrupt(signum=None, frame=None) -> None:
+    """Signal handler for Ctrl-C and SIGTERM: raise KeyboardInterrupt, and remember it, so that
+    a library that catches the exception inside a blocking call (Ray's waits check signals
+    from C++) cannot make the run go on: the run loop raises it again at its next turn."""
+    INTERRUPTED.set()
+    raise KeyboardInterrupt
 _EXIT_OF = {"done": EXIT_OK, "skipped": EXIT_OK, "failed": EXIT_FAILED, "conflict": EXIT_LEFT_ALONE,
             "corrupt": EXIT_LEFT_ALONE, "busy": EXIT_BUSY}
 
@@ -91,6 +101,7 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
         from .executors.local import LocalExecutor
 
         executor = LocalExecutor(opts.workers)
+    INTERRUPTED.clear()
     results: list[SeedResult] = []
     pending = list(seeds)
     locks: dict[int, folders.SeedLock] = {}
@@ -152,6 +163,8 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
             pending = waiting + pending
             for e in executor.events(timeout=0.2):
                 handle(e)
+            if INTERRUPTED.is_set():
+                raise KeyboardInterrupt
     except KeyboardInterrupt:
         executor.cancel_all()  # kills what runs, removes the partial folders it made
         for lock in locks.values():
