@@ -1,6 +1,7 @@
 """Every modality of the current view, by name (exporters/modalities.py), from the Simulator's
 public API: one Blender render for the ``render`` modalities, one pixel-centre ray cast
-(``render(engine="raycast")``) for the ``geometry`` ones (normals, optical flow, ...)."""
+(``render(engine="raycast")``) for the ``geometry`` ones (normals, optical flow, ...), which
+the render's depth, labels and ids share (generator/geometry/pixel_truth.py)."""
 
 from __future__ import annotations
 
@@ -38,12 +39,12 @@ def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int
     """A :class:`RenderOutput` holding the modalities ``names`` (default: all registered) of
     the current view; Blender renders only if a ``render`` modality is asked for."""
     names = resolve(names)
+    computed = [n for n in names if MODALITIES[n].source == "geometry"]
+    # the pixel-centre cast first: render()'s depth, labels and ids reuse it (same pose and frame)
+    g = pixel_geometry(sim, poses, object_matrices, index) if computed else None
     if any(MODALITIES[n].source == "render" for n in names):
         out = sim.render()
     else:
         out = RenderOutput(None, None, None, None, None, sim.K.copy(), sim.get_world_from_camera(), sim.frame)
-    computed = [n for n in names if MODALITIES[n].source == "geometry"]
-    if computed:
-        g = pixel_geometry(sim, poses, object_matrices, index)
-        out.extra.update({n: MODALITIES[n].compute(g) for n in computed})
+    out.extra.update({n: MODALITIES[n].compute(g) for n in computed})
     return out

@@ -14,7 +14,7 @@ import numpy as np
 from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
 from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
-from .blender.objects import SceneError, check_names, object_table  # noqa: F401 (SceneError is public here)
+from .blender.objects import SceneError, check_names, filtered_parts, object_table  # noqa: F401 (SceneError is public)
 from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
 from .checks import check_number
@@ -22,7 +22,8 @@ from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.parts import MeshPart
-from .geometry.raycam import GeometricRender, RayCamera, geometric_render, labels_of_parts
+from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth, pass_index_of
+from .geometry.raycam import GeometricRender, geometric_render, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -58,6 +59,11 @@ class Simulator(PaperAPI):
             ``labels``. A timeline's stages share one table (generator/batch/phases.py), so
             instance and label ids do not change between stages.
             None (default): the scene's objects, sorted.
+        ground_truth: where ``render()``'s depth, labels and instance ids come from:
+            'geometry' (default) casts one ray per pixel centre into the scene's triangles
+            (the same on every engine and device, and the surface the normals and flow
+            describe); 'renderer' reads the renderer's passes (Cycles' Depth and Object
+            Index, as the paper does). See docs/rendering.md.
         verbose: print what was found (points, labels) to stderr.
 
     The paper's names (``n_points``, ``camera_matrix``, ``set_camera_from_next_camera``...)
@@ -77,6 +83,7 @@ class Simulator(PaperAPI):
         geometry_nodes_objects=("Generator",),
         filter_object_names=(),
         instance_names=None,
+        ground_truth: str = "geometry",
         verbose: bool = False,
     ):
         self.points_density = check_number("points_density", points_density, low=0, low_open=True)
@@ -91,6 +98,7 @@ class Simulator(PaperAPI):
         self.blend_file = Path(blend_file)
         self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
         self.filter_object_names = check_names("filter_object_names", filter_object_names)
+        self.ground_truth = check_ground_truth(ground_truth)
         self.verbose = bool(verbose)
 
         session.open_blend(self.blend_file)
@@ -110,10 +118,12 @@ class Simulator(PaperAPI):
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
         self._geometry = SceneGeometry(self._parts)
+        occluders, self._occluder_bindings = filtered_parts(extracted, self.filter_object_names)
+        self._occluders = SceneGeometry(occluders) if occluders else None
+        self._pixel_truth = PixelTruth(self._geometry, self._occluders)  # render()'s ground truth, render_geometry()
         self._points = SurfacePoints(self._parts, self.label_ids, self.points_density, self.seed)
         self._pass_table = assign_pass_indices(self._parts, self.label_ids)
         self._renderer: Renderer | None = None
-        self._raycam: RayCamera | None = None  # render(engine="raycast"), built on first use
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
@@ -356,6 +366,8 @@ class Simulator(PaperAPI):
         self.frame = int(frame)
         session.set_frame(self.frame)
         self._geometry.set_matrices(dynamic_matrices(self._bindings))
+        if self._occluders is not None:
+            self._occluders.set_matrices(dynamic_matrices(self._occluder_bindings))
         self._points.update(self._parts)
         bcam.write_pose(self._world_from_camera, self._camera)
         return self.frame
@@ -412,8 +424,10 @@ class Simulator(PaperAPI):
         """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
 
         See :class:`generator.passes.RenderOutput` for shapes, units and conventions; the
-        returned object also holds ``instance`` and ``rgb_linear``. ``engine="raycast"``
-        returns :meth:`render_geometry` instead (no Blender render, no RGB).
+        returned object also holds ``instance`` and ``rgb_linear``. Depth, labels and ids come
+        from ``ground_truth`` (default: ray casting the scene's triangles at the pixel centres,
+        the same on every device); colour from Blender. ``engine="raycast"`` returns
+        :meth:`render_geometry` instead (no Blender render, no RGB).
         """
         if engine == "raycast":
             return self.render_geometry()
@@ -424,7 +438,7 @@ class Simulator(PaperAPI):
             self._renderer = Renderer()
         raw = self._renderer.render()
         t0 = time.perf_counter()
-        index = raw.object_index if raw.object_index is not None else self._pass_index_by_rays()
+        depth, index = self._depth_and_pass_index(raw)
         coverage = None
         if raw.crypto_ids is not None:
             hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
@@ -433,31 +447,32 @@ class Simulator(PaperAPI):
         seg, inst = semantic_map(index, self._pass_table.labels, self._pass_table.instances, sensitivity, coverage)
         self.last_render_timings = dict(self._renderer.last_timings, labels=time.perf_counter() - t0)
         return RenderOutput(
-            raw.rgb_display, raw.depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
+            raw.rgb_display, depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
         )
+
+    def _depth_and_pass_index(self, raw) -> tuple[np.ndarray, np.ndarray]:
+        """Planar depth and object pass index (H, W) at the pixel centres, from the source
+        ``self.ground_truth`` names (engines without an object-index pass: by rays)."""
+        check_ground_truth(self.ground_truth)
+        if self.ground_truth == "renderer" and raw.object_index is not None:
+            return raw.depth, raw.object_index
+        hits = self._pixel_hits(normals=False)
+        depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth
+        return depth, pass_index_of(hits, self._pass_table.of_part)
 
     def render_geometry(self, normals: bool = True) -> GeometricRender:
         """The current view by ray casting the Simulator's geometry, one ray per pixel centre,
         no Blender render: depth, seg and instance with the conventions of :meth:`render`
         (``segmentation_sensitivity`` 0), ``normal`` (H, W, 3) camera-frame unit normals
         facing the camera (None without ``normals``), and ``rgb`` = ``rgb_linear`` = None
-        (colour needs a renderer). Objects in ``filter_object_names`` are not seen (rays
-        pass through them). See generator/geometry/raycam.py."""
+        (colour needs a renderer). Objects in ``filter_object_names`` are unlabelled surfaces
+        (seg and instance -1, depth and normal kept). See generator/geometry/pixel_truth.py."""
         self._check_current()
-        args = (self.K, self.width, self.height, self.clip_start, self.clip_end)
-        if self._raycam is None or not self._raycam.matches(*args):
-            self._raycam = RayCamera(*args)
-        hits = self._raycam.cast(self._geometry, self._world_from_camera, normals=normals)
+        hits = self._pixel_hits(normals=normals)
         label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
         return geometric_render(hits, label_of_part, self.K, self._world_from_camera, self.frame)
 
-    def _pass_index_by_rays(self) -> np.ndarray:
-        """Pass index of the surface through each pixel centre, by ray casting our own
-        geometry (for engines without an object-index pass)."""
-        rays = cam_model.pixel_rays(self.K, self.width, self.height).reshape(-1, 3)
-        pose = self._world_from_camera
-        dirs = rays @ pose[:3, :3].T
-        t, part = self._geometry.cast(np.broadcast_to(pose[:3, 3], dirs.shape), dirs)  # t = planar depth
-        hit = (part >= 0) & (t > self.clip_start) & (t <= self.clip_end)
-        out = np.where(hit, self._pass_table.of_part[np.maximum(part, 0)], 0)
-        return out.reshape(self.height, self.width).astype(np.int32)
+    def _pixel_hits(self, normals: bool):
+        """The surface at every pixel centre of the current view (geometry/pixel_truth.py)."""
+        camera = CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end)
+        return self._pixel_truth.hits(camera, self._world_from_camera, normals)

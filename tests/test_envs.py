@@ -46,8 +46,8 @@ def make(blend_files, **kw):
 
 # ---- geometric camera ------------------------------------------------------------------------
 def test_geometric_camera_agrees_with_cycles_at_pixel_centres(rooms):
-    sim = Simulator(rooms[0], segmentation_sensitivity=0.0, render_preset="preview")
-    cyc = sim.render()
+    sim = Simulator(rooms[0], segmentation_sensitivity=0.0, render_preset="preview", ground_truth="renderer")
+    cyc = sim.render()  # Cycles' own Depth and Object Index passes
     geo = sim.render(engine="raycast")
     assert geo.rgb is None and geo.rgb_linear is None
     assert geo.depth.dtype == np.float32 and geo.depth.shape == (H, W)

@@ -44,7 +44,18 @@ def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ..
     belongs to its instancer's name), binding indices renumbered."""
     if not names:
         return parts, bindings
-    keep = [i for i, p in enumerate(parts) if p.name.split("/")[0] not in names]
+    return _select(parts, bindings, lambda p: p.name.split("/")[0] not in names)
+
+
+def filtered_parts(extracted, filter_object_names: tuple[str, ...]):
+    """(parts, dynamic bindings) of the ``filter_object_names`` objects alone: not simulated,
+    but still surfaces in the image (generator/geometry/pixel_truth.py)."""
+    return _select(extracted.parts, extracted.bindings, lambda p: p.name.split("/")[0] in filter_object_names)
+
+
+def _select(parts: list[MeshPart], bindings: list, keep_part):
+    """The parts for which ``keep_part(part)`` holds and their dynamic bindings, renumbered."""
+    keep = [i for i, p in enumerate(parts) if keep_part(p)]
     new_index = {old: new for new, old in enumerate(keep)}
     kept = [replace(b, part=new_index[b.part]) for b in bindings if b.part in new_index]
     return [parts[i] for i in keep], kept

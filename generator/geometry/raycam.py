@@ -105,6 +105,6 @@ def geometric_render(hits: PixelHits, label_of_part: np.ndarray, K: np.ndarray, 
     indices (= instance ids) to label ids."""
     inst = hits.part.astype(np.int32)
     seg = np.where(inst >= 0, label_of_part[np.maximum(inst, 0)], -1).astype(np.int32)
-    return GeometricRender(rgb=None, depth=hits.depth, seg=seg, instance=inst, rgb_linear=None,
+    return GeometricRender(rgb=None, depth=hits.depth.copy(), seg=seg, instance=inst, rgb_linear=None,
                            K=np.array(K, dtype=np.float64), world_from_camera=np.array(world_from_camera, dtype=np.float64),
-                           frame=int(frame), normal=hits.normal)
+                           frame=int(frame), normal=None if hits.normal is None else hits.normal.copy())

@@ -1,0 +1,92 @@
+"""The surface at every pixel centre, by ray casting the scene's own triangles: the source
+of ``Simulator.render()``'s depth, labels and instance ids (``ground_truth="geometry"``,
+the default) and of ``render_geometry()`` (normals, optical flow). bpy-free.
+
+One ray per pixel centre (generator/geometry/raycam.py) into the simulated parts and, when
+the Simulator filters objects out (``filter_object_names``), into those objects too: they
+are not simulated (no points, no label, no collisions) but are still surfaces in the image,
+so a pixel whose nearest surface is a filtered object has its depth and part index -1
+(unlabelled), as in the renderer's own passes.
+
+The answer depends only on the triangles, the pose and the camera: never on the render
+engine, its device (CPU or GPU), its samples or its seed (docs/rendering.md). The last
+answer is kept while the pose, the camera and the geometry stay, so ``render()`` and the
+geometry modalities of one frame cast once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .raycam import PixelHits, RayCamera
+from .raycast import SceneGeometry
+
+# Where the Simulator's ground truth comes from (``Simulator(ground_truth=...)``):
+# "geometry": ray casting the scene's triangles at the pixel centres (this module);
+# "renderer": the renderer's own passes (Cycles' Depth and Object Index, the paper's way).
+GROUND_TRUTH_SOURCES = ("geometry", "renderer")
+
+
+def check_ground_truth(source: str) -> str:
+    """``source`` if it is one of GROUND_TRUTH_SOURCES, else a one-line ValueError."""
+    if source not in GROUND_TRUTH_SOURCES:
+        raise ValueError(f"ground_truth must be one of {', '.join(map(repr, GROUND_TRUTH_SOURCES))}, got {source!r}")
+    return source
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """What a pixel ray depends on besides the pose: intrinsics (3, 3), image size and the
+    clip range (planar metres)."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    clip_start: float
+    clip_end: float
+
+
+def nearer(hits: PixelHits, other: PixelHits) -> PixelHits:
+    """Per pixel, the nearer surface of two casts of the same rays; a surface of ``other``
+    counts as unlabelled (part -1). Ties go to ``hits``."""
+    closer = other.depth < hits.depth
+    normal = None
+    if hits.normal is not None and other.normal is not None:
+        normal = np.where(closer[..., None], other.normal, hits.normal)
+    return PixelHits(np.where(closer, other.depth, hits.depth), np.where(closer, -1, hits.part), normal)
+
+
+class PixelTruth:
+    """Pixel-centre hits of ``geometry`` (the simulated parts) and ``occluders`` (filtered
+    objects; None if there are none), with the last answer kept."""
+
+    def __init__(self, geometry: SceneGeometry, occluders: SceneGeometry | None = None):
+        self.geometry, self.occluders = geometry, occluders
+        self._camera: RayCamera | None = None
+        self._key, self._hits = None, None
+
+    def hits(self, camera: CameraModel, world_from_camera: np.ndarray, normals: bool) -> PixelHits:
+        """First surface through every pixel centre from the pose ``world_from_camera`` (4x4,
+        OpenCV): depth (H, W) float32 planar metres (+inf: none), part (H, W) int64 (-1: none
+        or a filtered object), normal (H, W, 3) camera frame or None without ``normals``.
+        The arrays are shared with the next call at the same state: copy before changing."""
+        args = (camera.K, camera.width, camera.height, camera.clip_start, camera.clip_end)
+        if self._camera is None or not self._camera.matches(*args):
+            self._camera, self._hits = RayCamera(*args), None
+        pose = np.asarray(world_from_camera, dtype=np.float64)
+        key = (pose.tobytes(), self.geometry.version, self.occluders.version if self.occluders else 0)
+        if self._hits is not None and self._key == key and (self._hits.normal is not None or not normals):
+            return self._hits
+        hits = self._camera.cast(self.geometry, pose, normals=normals)
+        if self.occluders is not None:
+            hits = nearer(hits, self._camera.cast(self.occluders, pose, normals=normals))
+        self._key, self._hits = key, hits
+        return hits
+
+
+def pass_index_of(hits: PixelHits, pass_of_part: np.ndarray) -> np.ndarray:
+    """(H, W) int32 object pass index of the surface at each pixel centre (0: none, or a
+    filtered object), from the part hit and each part's pass index ``pass_of_part`` (P,)."""
+    return np.where(hits.part >= 0, pass_of_part[np.maximum(hits.part, 0)], 0).astype(np.int32)

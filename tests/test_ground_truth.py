@@ -1,0 +1,128 @@
+"""Where render()'s depth, labels and instance ids come from (generator/geometry/pixel_truth.py,
+docs/rendering.md): by default one ray per pixel centre into the scene's triangles, so they
+do not depend on the renderer, its device, samples or seed; ``ground_truth="renderer"`` reads
+Cycles' own passes (the paper's way), which agree up to float round-off."""
+
+import math
+
+import numpy as np
+import pytest
+
+from generator import Simulator
+from tests import scenes
+
+W, H = 64, 48
+
+
+def _make_linear(obj):
+    from bpy_extras import anim_utils
+
+    ad = obj.animation_data
+    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
+        for key in fc.keyframe_points:
+            key.interpolation = "LINEAR"
+
+
+@pytest.fixture(scope="module")
+def yard(tmp_path_factory):
+    """Ground, a wall in front of a crate, a pole, and a truck driving +x at 1 m per frame."""
+    scenes.new_scene(W, H)
+    scenes.add_plane("Ground", (100, 100), (0, 0, 0))
+    scenes.add_box("Wall", (3, 0.2, 3), (-4, -5, 1.5))
+    scenes.add_box("Crate", (1, 1, 1), (-3.0, -2, 0.5))  # its left edge behind the wall
+    scenes.add_cylinder("Pole", 0.15, 4, (3, -3, 2))
+    truck = scenes.add_box("Truck", (3, 2, 1), (0, 0, 1.0))
+    truck.keyframe_insert("location", frame=1)
+    truck.location.x = 10.0
+    truck.keyframe_insert("location", frame=11)
+    _make_linear(truck)
+    scenes.add_sun()
+    scenes.add_camera((0, -15, 3), (math.radians(80), 0, 0))
+    return scenes.save(tmp_path_factory.mktemp("gt") / "yard.blend")
+
+
+def _truth(out):
+    return out.depth.copy(), out.seg.copy(), out.instance.copy()
+
+
+def test_ground_truth_is_the_pixel_centre_ray_cast_whatever_the_render(yard):
+    sim = Simulator(yard, segmentation_sensitivity=0.0, render_preset="preview")
+    sim.set_frame(1)
+    first = sim.render()
+    geo = sim.render_geometry(normals=False)
+    assert np.array_equal(first.depth, geo.depth) and np.array_equal(first.seg, geo.seg)
+    assert np.array_equal(first.instance, geo.instance)  # no instancing here: pass index = object id
+    assert {sim.labels[i] for i in np.unique(first.seg[first.seg >= 0])} == {"Ground", "Wall", "Pole", "Truck", "Crate"}
+    # another render of the same view with other samples, bounces, seed and threads: new colours, same truth
+    sim.configure_render(samples=1, bounces=0, denoise=False, threads=1)
+    sim.scene.cycles.seed = 7
+    second = sim.render()
+    assert not np.allclose(second.rgb_linear, first.rgb_linear)
+    for a, b in zip(_truth(first), _truth(second)):
+        assert np.array_equal(a, b)
+
+
+def test_renderer_passes_agree_with_the_ray_cast(yard):
+    sim = Simulator(yard, segmentation_sensitivity=0.0, render_preset="preview", ground_truth="renderer")
+    sim.set_frame(3)
+    cyc = sim.render()
+    sim.ground_truth = "geometry"
+    ours = sim.render()
+    finite = np.isfinite(cyc.depth)
+    assert np.array_equal(finite, np.isfinite(ours.depth)) and finite.mean() > 0.5
+    rel = np.abs(ours.depth[finite] - cyc.depth[finite]) / cyc.depth[finite]
+    assert np.median(rel) < 1e-4 and rel.max() < 5e-4  # float32 round-off; Cycles drifts at grazing angles (the ground)
+    pad = np.pad(cyc.instance, 1, mode="edge")
+    neigh = np.stack([pad[1 + di: 1 + di + H, 1 + dj: 1 + dj + W] for di in (-1, 0, 1) for dj in (-1, 0, 1)])
+    interior = np.all(neigh == cyc.instance, axis=0)
+    assert interior.mean() > 0.6
+    assert np.array_equal(ours.instance[interior], cyc.instance[interior])
+    assert np.array_equal(ours.seg[interior], cyc.seg[interior])
+    sim.ground_truth = "both"
+    with pytest.raises(ValueError, match="ground_truth must be one of"):
+        sim.render()
+    with pytest.raises(ValueError, match="ground_truth must be one of"):
+        Simulator(yard, ground_truth="cycles")
+
+
+def test_the_kept_answer_follows_pose_and_motion_and_is_not_shared(yard):
+    sim = Simulator(yard, segmentation_sensitivity=0.0)
+    sim.set_frame(1)
+    truck = sim.object_names.index("Truck")
+    at_1 = sim.render_geometry()
+    on_truck = at_1.instance == truck
+    assert on_truck.sum() > 20
+    at_1.depth[:] = 0.0  # changing a returned array changes nothing kept
+    assert np.array_equal(sim.render_geometry().depth[on_truck], sim.render_geometry(normals=False).depth[on_truck])
+    assert np.all(sim.render_geometry().depth > 0)
+    sim.set_frame(8)  # the truck drove 7 m to +x: its old pixels see the ground (or the pole) now
+    at_8 = sim.render_geometry(normals=False)
+    assert (at_8.instance[on_truck] != truck).mean() > 0.5
+    assert np.array_equal(at_8.depth, sim.render_geometry().depth)
+    pose = sim.get_world_from_camera()
+    pose[0, 3] += 1.0
+    sim.set_world_from_camera(pose, check_collisions=False)
+    moved = sim.render_geometry(normals=False)
+    assert not np.array_equal(moved.instance, at_8.instance)
+
+
+def test_filtered_objects_hide_what_is_behind_them_unlabelled(yard):
+    plain = Simulator(yard, segmentation_sensitivity=0.0, render_preset="preview")
+    plain.set_frame(1)
+    ref = plain.render_geometry(normals=False)
+    wall_px, truck_px = [ref.instance == plain.object_names.index(n) for n in ("Wall", "Truck")]
+    assert wall_px.sum() > 20 and truck_px.sum() > 20
+    sim = Simulator(yard, segmentation_sensitivity=0.0, render_preset="preview", filter_object_names=["Wall", "Truck"])
+    sim.set_frame(1)
+    for out in (sim.render(), sim.render_geometry()):
+        for px in (wall_px, truck_px):  # still surfaces at their own depth, unlabelled
+            assert np.all(out.seg[px] == -1) and np.all(out.instance[px] == -1)
+            assert np.allclose(out.depth[px], ref.depth[px], rtol=1e-6)
+    assert "Wall" not in sim.labels and "Truck" not in sim.labels
+    # the filtered truck moves with the animation: at frame 8 its old pixels see the ground again
+    sim.set_frame(8)
+    out = sim.render()
+    assert (out.seg[truck_px] == sim.labels.index("Ground")).mean() > 0.3
+    sim.ground_truth = "renderer"  # Cycles' passes see the same
+    cyc = sim.render()
+    assert (cyc.seg[truck_px] == out.seg[truck_px]).mean() > 0.9
