@@ -181,6 +181,68 @@ def test_point_groups_equal_one_ray_per_point_on_exact_boundaries():
     # the face seen edge-on is decided by rays (not rule 3): the same answers as without normals
     edge_on = visible_points(geo, points[on_face], None, None, pose, K, 64, 48, limits)
     assert np.array_equal(fast[on_face], edge_on)
+    # without normals (no rule 3) the groups give the ray-per-point answer too
+    no_normals = visible_points(geo, points, None, part, pose, K, 64, 48, limits)
+    assert np.array_equal(no_normals, visible_points(geo, points, None, part, pose, K, 64, 48, limits,
+                                                     ray_per_point=True))
+    assert np.array_equal(no_normals, fast)  # the box's back face is hidden by its front face anyway
+
+
+def _spread_values(rng, n):
+    """Values of every sign and magnitude from 1e-3 to 1e4 (round-off differences show)."""
+    return rng.choice([-1.0, 1.0], n) * 10.0 ** rng.uniform(-3, 4, n) * rng.uniform(1, 2, n)
+
+
+def test_kernel_arithmetic_rounds_as_the_rules():
+    """The compiled per-point arithmetic (point_block_kernels) gives the same bits as numpy's
+    evaluation of the rules' expressions (visibility_rules.in_view and occlusion_rays): no
+    reordering, no fused multiply-add."""
+    from generator.geometry.point_block_kernels import segment_keep_of, view_coords_of
+
+    rng = np.random.default_rng(11)
+    n = 200_000
+    dx, dy, dz = (_spread_values(rng, n) for _ in range(3))
+    rows = [_spread_values(rng, 3) for _ in range(3)]
+    got = view_coords_of(dx, dy, dz, *rows)
+    for k, a in enumerate(rows):  # in_view: dx * a[0] + dy * a[1] + dz * a[2], left to right
+        assert np.array_equal(got[k].view(np.int64), (dx * a[0] + dy * a[1] + dz * a[2]).view(np.int64))
+    dx[:3], dy[:3], dz[:3] = 0.0, [0.0, 1e-4, 2e-3], 0.0  # at the centre, inside and outside the tolerance
+    dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+    with np.errstate(divide="ignore"):
+        keep = np.maximum(1.0 - (OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist) / dist, 0.0)
+    got = segment_keep_of(dx, dy, dz)
+    assert got[0] == 0 and got[1] == 0 and got[2] > 0
+    assert np.array_equal(got.view(np.int64), keep.view(np.int64))
+
+
+def test_kernels_have_no_fused_multiply_add():
+    """numba is not allowed to fuse a * b + c into one rounding (it would change the bits of
+    the rules' tests): no FMA instruction in the compiled code of the visibility kernel."""
+    import re
+
+    import numba
+
+    from generator.geometry import point_block_kernels as kernels
+
+    sim_points = np.random.default_rng(0).uniform(-5, 5, (500, 3))
+    ground = MeshPart("Ground", "Ground", np.array([[-50, -50, -6], [50, -50, -6], [50, 50, -6], [-50, 50, -6.0]]),
+                      np.array([[0, 1, 2], [0, 2, 3]]), closed=False)
+    pose = np.array([[1, 0, 0, 0], [0, 0, 1, -20], [0, -1, 0, 0], [0, 0, 0, 1.0]])
+    K = np.array([[50, 0, 32], [0, 50, 24], [0, 0, 1.0]])
+    normals = np.tile([0, 0, 1.0], (500, 1))
+    visible_points(SceneGeometry([ground]), sim_points, normals, np.zeros(500, np.int32), pose, K, 64, 48)
+    fma = re.compile(r"^\s*(v?f(n)?m(add|sub)\w*|fml[as]\w*)\s", re.MULTILINE | re.IGNORECASE)
+    for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of):
+        if not kernel.signatures:
+            kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))
+        # numba shows no code of a function loaded from its disk cache: compile it afresh,
+        # with the same options
+        fresh = numba.njit(**{k: v for k, v in kernel.targetoptions.items() if k not in ("cache", "nopython")})(
+            kernel.py_func)
+        for sig in kernel.signatures:
+            fresh.compile(sig)
+            asm = fresh.inspect_asm(sig)
+            assert "ret" in asm and "mul" in asm and not fma.search(asm), kernel
 
 
 @pytest.fixture(scope="module")

@@ -14,26 +14,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import point_block_kernels as kernels
+from .point_block_kernels import MARGIN
 from .raycast import SceneGeometry
-from .visibility_rules import (
-    ViewLimits,
-    VisibilityStats,
-    cullable_parts,
-    facing_away,
-    in_view,
-    segments_blocked,
-    view_planes,
-)
+from .visibility_rules import ViewLimits, VisibilityStats, cullable_parts, view_planes
 
 # Points per group (the unit of the rule 1-3 decisions) and per block (of whole groups:
 # the unit of the first cull).
 SUB = 16
 BLOCK = 128
 
-# A group counts as wholly inside a half-space (or wholly facing one way) only if it is so
-# by this share of the magnitudes involved: far above the round-off of the per-point tests
-# (~1e-15 relative), so that skipping them never changes an answer.
-MARGIN = 1e-9
+# without normals: no part for rule 3, no cones
+_NO_PARTS = np.zeros(0, dtype=bool)
+_NO_CONE = (np.zeros((3, 0)), np.zeros(0), np.zeros((3, 0)))
 
 
 class PointBlocks:
@@ -64,6 +57,7 @@ class PointBlocks:
         self.block_first, self.block_groups = _runs(self.group_part, BLOCK // SUB)
         self.points = self.normals = None
         self._answers, self._answers_key, self._known = None, None, 0
+        self._rays = self._pos = None  # buffers of select_rays, made at the first call
         self.set_points(points, normals)
 
     @classmethod
@@ -103,81 +97,38 @@ class PointBlocks:
                 height: int, limits: ViewLimits, stats: VisibilityStats | None = None) -> np.ndarray:
         """Visibility mask (N,) in the caller's point order (see :func:`.visibility.visible_points`)."""
         n = len(self.order)
-        pos, counts = self._rules_1_to_3(geometry, r, centre, K, width, height, limits)
+        centre = np.ascontiguousarray(centre, dtype=np.float64)
+        view = _View(r, centre, K, width, height, limits)
+        cullable = cullable_parts(geometry, centre) if self.nxyz is not None else _NO_PARTS
         # rules 3 and 4 depend on the camera centre, not on its orientation: ray answers
-        # found earlier from this centre (same geometry state) are reused (1 visible, 2 hidden)
+        # found earlier from this centre (same geometry state) are reused
         answers = self._answers_for(centre, geometry.version)
-        reused = pos[:0]
-        if self._known:
-            known = answers[pos]
-            if known.any():
-                reused = np.take(pos, np.flatnonzero(known == 1))
-                pos = np.take(pos, np.flatnonzero(known == 0))
-        blocked = segments_blocked(geometry, centre, *self._offsets(pos, centre))
-        answers[pos] = np.where(blocked, np.int8(2), np.int8(1))
-        self._known += len(pos)
         mask = np.zeros(n, dtype=bool)
-        mask[np.take(self.order, np.take(pos, np.flatnonzero(~blocked)))] = True
-        if len(reused):
-            mask[np.take(self.order, reused)] = True
+        counts = np.zeros(4, dtype=np.int64)
+        if self._rays is None:
+            self._rays, self._pos = np.empty((n, 6), dtype=np.float32), np.empty(n, dtype=np.int64)
+        group, block, cone = self.group_box, self.block_box, self._cone()
+        m = kernels.select_rays(
+            self.block_first, self.block_groups, block.centre, block.half, block.extent,
+            self.start, self.size, self.group_part, group.centre, group.half, group.extent, group.radius,
+            cone[0], cone[1], self.xyz, cone[2], self.order, cullable,
+            view.a, view.b, view.slack, centre, *view.rows, float(limits.near), float(limits.far), int(width),
+            int(height), answers, self._known > 0, mask, self._pos, self._rays, counts)
+        pos = self._pos[:m]
+        kernels.store_answers(geometry.rays_blocked(self._rays[:m]), pos, self.order, answers, mask)
+        self._known += m + int(counts[kernels.SETTLED])
         if stats is not None:
-            stats.tested, (stats.in_view, stats.culled_backfacing, stats.tested_one_by_one) = n, counts
-            stats.rays, stats.visible = len(pos), int(np.count_nonzero(mask))
+            stats.tested, stats.in_view, stats.culled_backfacing = n, int(counts[kernels.IN_VIEW]), int(
+                counts[kernels.CULLED])
+            stats.tested_one_by_one = int(counts[kernels.ONE_BY_ONE])
+            stats.rays, stats.visible = m, int(np.count_nonzero(mask))
         return mask
 
-    def _rules_1_to_3(self, geometry: SceneGeometry, r: np.ndarray, centre: np.ndarray, K: np.ndarray, width: int,
-                      height: int, limits: ViewLimits) -> tuple[np.ndarray, tuple[int, int, int]]:
-        """Positions (group order) of the points that pass rules 1-3, and the counts (in
-        view, hidden by rule 3, tested one by one)."""
-        groups, edge = self._groups_in_view(_View(r, centre, K, width, height, limits))
-        away = mixed = None
-        if self.nxyz is not None and len(groups):
-            cullable = cullable_parts(geometry, centre)[self.group_part[groups]]
-            if cullable.any():
-                away, mixed = self._groups_facing_away(groups, centre)
-                away &= cullable
-                mixed &= cullable
-        # clean groups (wholly in view, rule 3 settled as "facing the camera" or moot) need no
-        # per-point test; groups wholly in view and on the back of a solid are only counted
-        todo = edge if away is None else edge | away | mixed
-        clean = np.take(groups, np.flatnonzero(~todo))
-        pos_clean = positions(self.start[clean], self.size[clean])
-        in_view_count = len(pos_clean)
-        culled = 0
-        if away is not None:
-            settled = np.take(groups, np.flatnonzero(away & ~edge))
-            culled = in_view_count_away = int(self.size[settled].sum())
-            in_view_count += in_view_count_away
-            todo &= ~(away & ~edge)
-        which = np.flatnonzero(todo)
-        if len(which) == 0:
-            return pos_clean, (in_view_count, culled, 0)
-        groups, edge = np.take(groups, which), np.take(edge, which)
-        sizes = self.size[groups]
-        pos = positions(self.start[groups], sizes)
-        keep = np.ones(len(pos), dtype=bool)
-        if edge.any():  # rules 1 and 2 point by point in the groups on the view's edges
-            test = np.flatnonzero(np.repeat(edge, sizes))
-            keep[test] = in_view(*self._offsets(np.take(pos, test), centre), r, K, width, height, limits)
-        in_view_count += int(np.count_nonzero(keep))
-        if away is not None:
-            away, mixed = np.take(away, which), np.take(mixed, which)
-            if away.any():  # on the view's edges, on the back of a solid
-                back = np.repeat(away, sizes) & keep
-                culled += int(np.count_nonzero(back))
-                keep &= ~back
-            if mixed.any():  # rule 3 point by point
-                test = np.flatnonzero(np.repeat(mixed, sizes) & keep)
-                p = np.take(pos, test)
-                back = facing_away(*(np.take(self.nxyz[k], p) for k in range(3)), *self._offsets(p, centre))
-                culled += int(np.count_nonzero(back))
-                keep[test] = ~back
-        counts = (in_view_count, culled, len(pos))
-        return np.concatenate([pos_clean, np.take(pos, np.flatnonzero(keep))]), counts
-
-    def _offsets(self, pos: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The points at ``pos`` (group order) minus the camera centre, axis by axis."""
-        return tuple(np.take(self.xyz[k], pos) - centre[k] for k in range(3))
+    def _cone(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(cone axes (3, groups), spreads (groups,), normals (3, N)); empty without normals."""
+        if self.nxyz is None:
+            return _NO_CONE
+        return self.cone_axis, self.cone_spread, self.nxyz
 
     def _answers_for(self, centre: np.ndarray, version: int) -> np.ndarray:
         """Per position in group order, rule 4 from ``centre`` as found so far (0 unknown,
@@ -188,41 +139,6 @@ class PointBlocks:
             self._answers = np.zeros(len(self.order), dtype=np.int8)
             self._answers_key, self._known = key, 0
         return self._answers
-
-    def _groups_in_view(self, view: "_View") -> tuple[np.ndarray, np.ndarray]:
-        """The groups whose box meets the view (rules 1 and 2), and for each whether it is
-        on the view's edge (its points need the per-point test)."""
-        blocks, block_edge = view.boxes(self.block_box)
-        counts = self.block_groups[blocks]
-        groups = positions(self.block_first[blocks], counts)
-        edge = np.repeat(block_edge, counts)
-        check = np.flatnonzero(edge)
-        if len(check):  # the groups of the blocks on the view's edge, box by box
-            meets, group_edge = view.boxes(self.group_box, groups[check], keep_all=True)
-            edge[check] = group_edge
-            if not meets.all():
-                live = np.ones(len(groups), dtype=bool)
-                live[check[~meets]] = False
-                live = np.flatnonzero(live)
-                groups, edge = groups[live], edge[live]
-        return groups, edge
-
-    def _groups_facing_away(self, groups: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For these groups: all their points face away from ``c`` (n . (p - c) > 0 for
-        every point: rule 3 hides them if on a solid), or some may (mixed: test them one by
-        one). From the box and the normal cone: n . (p - c) lies within
-        m . (p - c) +- spread * |p - c| for the cone's axis m."""
-        box = self.group_box
-        axis = np.take(self.cone_axis, groups, axis=1)
-        half = np.take(box.half, groups, axis=1)
-        rel = np.take(box.centre, groups, axis=1) - c[:, None]
-        mid = (axis * rel).sum(axis=0)
-        reach = (np.abs(axis) * half).sum(axis=0)
-        far = np.sqrt((rel * rel).sum(axis=0)) + box.radius[groups]
-        slack = self.cone_spread[groups] * far + MARGIN * (far + np.abs(c).sum() + 1.0)
-        away = mid - reach > slack
-        toward = mid + reach < -slack
-        return away, ~(away | toward)
 
 
 class _Boxes:
@@ -248,28 +164,9 @@ class _View:
             offsets.append(limits.far)
         self.a = np.array(planes)  # (planes, 3)
         self.abs_a = np.abs(self.a)
-        self.b = (np.array(offsets) - self.a @ c)[:, None]
-        self.slack = (MARGIN * (self.abs_a @ np.abs(c) + np.abs(offsets)))[:, None]
-
-    def boxes(self, boxes: _Boxes, which: np.ndarray | None = None, keep_all: bool = False):
-        """For the boxes ``which`` (default: all): those meeting every half-space (their
-        indices, or with ``keep_all`` a mask over ``which``) and whether each is on the
-        view's edge (not inside every half-space by the margin)."""
-        if which is None:
-            which = np.arange(boxes.centre.shape[1])
-            centre, half, extent = boxes.centre, boxes.half, boxes.extent
-        else:
-            centre, half, extent = (np.take(x, which, axis=1) for x in (boxes.centre, boxes.half, boxes.extent))
-        mid = self.a @ centre + self.b  # (planes, M)
-        spread = self.abs_a @ half
-        margin = MARGIN * (self.abs_a @ extent) + self.slack
-        # culled only if outside some half-space by the margin; inside only if inside all by it
-        meets = np.logical_and.reduce(mid + spread >= -margin, axis=0)
-        if not keep_all:
-            live = np.flatnonzero(meets)
-            which, mid, spread, margin = which[live], mid[:, live], spread[:, live], margin[:, live]
-        edge = ~np.logical_and.reduce(mid - spread > margin, axis=0)
-        return (meets if keep_all else which), edge
+        self.b = np.array(offsets) - self.a @ c
+        self.slack = MARGIN * (self.abs_a @ np.abs(c) + np.abs(offsets))
+        self.rows = (a_z, a_u, a_v)  # of the per-point test (visibility_rules.in_view)
 
 
 def _runs(keys: np.ndarray, length: int) -> tuple[np.ndarray, np.ndarray]:
@@ -279,12 +176,6 @@ def _runs(keys: np.ndarray, length: int) -> tuple[np.ndarray, np.ndarray]:
     offset = np.arange(n) - np.repeat(key_start, np.diff(np.r_[key_start, n]))
     starts = np.flatnonzero(offset % length == 0)
     return starts, np.diff(np.r_[starts, n])
-
-
-def positions(starts: np.ndarray, sizes: np.ndarray) -> np.ndarray:
-    """The ranges [start, start + size) concatenated."""
-    total = int(sizes.sum())
-    return np.arange(total) + np.repeat(starts - (np.cumsum(sizes) - sizes), sizes)
 
 
 def direction_cell(normals: np.ndarray) -> np.ndarray:
