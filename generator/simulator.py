@@ -6,6 +6,7 @@ import math
 import os
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -436,7 +437,15 @@ class Simulator(PaperAPI):
         self._check_current()
         if self._renderer is None:
             self._renderer = Renderer()
-        raw = self._renderer.render()
+        if check_ground_truth(self.ground_truth) == "geometry":
+            # the pixel-centre cast runs while Blender renders (both release the GIL) and is
+            # kept for _depth_and_pass_index (geometry/pixel_truth.py)
+            with ThreadPoolExecutor(1) as pool:
+                cast = pool.submit(self._pixel_hits, False)
+                raw = self._renderer.render()
+                cast.result()
+        else:
+            raw = self._renderer.render()
         t0 = time.perf_counter()
         depth, index = self._depth_and_pass_index(raw)
         coverage = None
@@ -453,8 +462,7 @@ class Simulator(PaperAPI):
     def _depth_and_pass_index(self, raw) -> tuple[np.ndarray, np.ndarray]:
         """Planar depth and object pass index (H, W) at the pixel centres, from the source
         ``self.ground_truth`` names (engines without an object-index pass: by rays)."""
-        check_ground_truth(self.ground_truth)
-        if self.ground_truth == "renderer" and raw.object_index is not None:
+        if check_ground_truth(self.ground_truth) == "renderer" and raw.object_index is not None:
             return raw.depth, raw.object_index
         hits = self._pixel_hits(normals=False)
         depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth
