@@ -16,9 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from exporters.ground_truth import GroundTruthScene
-from generator.geometry.raycast import SceneGeometry
 from generator.geometry.surface_points import SurfacePoints
-from generator.geometry.visibility import ViewLimits, visible_points
 
 from .inputs import InputError, check_poses, check_timestamps, regular_file
 
@@ -62,6 +60,8 @@ class CoverageScorer:
     """Visibility of a scene's surface points from arbitrary poses, built once per scene."""
 
     def __init__(self, scene: GroundTruthScene):
+        from generator.geometry.raycast import SceneGeometry  # open3d: loaded only when coverage is scored
+
         self.scene = scene
         self.geometry = SceneGeometry(scene.parts)
         s = scene.surface
@@ -79,6 +79,8 @@ class CoverageScorer:
     def visible(self, world_from_camera: np.ndarray, K: np.ndarray, width: int, height: int,
                 frame: int | None = None) -> np.ndarray:
         """(N,) bool: surface points visible from one pose at ``frame`` (default: the first)."""
+        from generator.geometry.visibility import ViewLimits, visible_points
+
         self.set_frame(int(self.scene.frames[0]) if frame is None else int(frame))
         pts = self.points
         return visible_points(self.geometry, pts.world, pts.world_normals, pts.part,

@@ -17,7 +17,6 @@ import numpy as np
 
 from generator.geometry.voxels import majority_labels
 
-from .kdtree import KDTree
 
 DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
@@ -54,7 +53,10 @@ class Target:
         return cls(points, distinct, first)
 
     @cached_property
-    def tree(self) -> KDTree:
+    def tree(self):
+        """An :class:`evaluation.kdtree.KDTree` of the distinct points (numba: loaded on first use)."""
+        from .kdtree import KDTree
+
         return KDTree(self.distinct)
 
     @property
