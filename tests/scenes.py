@@ -105,3 +105,13 @@ def add_sun(strength: float = 3.0, rotation=(0.6, 0.2, 0.8)):
     world.color = (0.4, 0.5, 0.7)
     bpy.context.scene.world = world
     return sun
+
+
+def make_linear(obj) -> None:
+    """Linear interpolation between all keyframes of ``obj`` (constant speed)."""
+    from bpy_extras import anim_utils
+
+    ad = obj.animation_data
+    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
+        for key in fc.keyframe_points:
+            key.interpolation = "LINEAR"

@@ -9,18 +9,9 @@ import numpy as np
 import pytest
 
 from generator import Simulator
-from tests import scenes
+import scenes
 
 W, H = 64, 48
-
-
-def _make_linear(obj):
-    from bpy_extras import anim_utils
-
-    ad = obj.animation_data
-    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
-        for key in fc.keyframe_points:
-            key.interpolation = "LINEAR"
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +26,7 @@ def yard(tmp_path_factory):
     truck.keyframe_insert("location", frame=1)
     truck.location.x = 10.0
     truck.keyframe_insert("location", frame=11)
-    _make_linear(truck)
+    scenes.make_linear(truck)
     scenes.add_sun()
     scenes.add_camera((0, -15, 3), (math.radians(80), 0, 0))
     return scenes.save(tmp_path_factory.mktemp("gt") / "yard.blend")

@@ -105,15 +105,6 @@ def test_fixed_instance_table_keeps_ids_and_adds_empty_objects(walls):
 
 
 # ---- motion -------------------------------------------------------------------------------
-def _make_linear(obj):
-    from bpy_extras import anim_utils
-
-    ad = obj.animation_data
-    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
-        for key in fc.keyframe_points:
-            key.interpolation = "LINEAR"
-
-
 def moving_truck_scene(path):
     scenes.new_scene()
     scenes.add_plane("Ground", (100, 100), (0, 0, 0))
@@ -121,14 +112,14 @@ def moving_truck_scene(path):
     truck.keyframe_insert("location", frame=1)
     truck.location.x = 10.0  # 1 m per frame
     truck.keyframe_insert("location", frame=11)
-    _make_linear(truck)
+    scenes.make_linear(truck)
     wheel = scenes.add_cylinder("Wheel", 0.5, 0.2, (0, -1.1, 0.5), rotation=(math.pi / 2, 0, 0))
     wheel.parent = truck
     wheel.matrix_parent_inverse = truck.matrix_world.inverted()
     wheel.keyframe_insert("rotation_euler", frame=1)
     wheel.rotation_euler[1] = 20.0  # 2 rad per frame about the axle: rolling, radius 0.5 m
     wheel.keyframe_insert("rotation_euler", frame=11)
-    _make_linear(wheel)
+    scenes.make_linear(wheel)
     still = scenes.add_box("Cone", (0.3, 0.3, 0.7), (5, 5, 0.35))
     still.keyframe_insert("location", frame=1)  # keyframed but constant: static
     still.keyframe_insert("location", frame=11)
