@@ -23,7 +23,7 @@ from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.parts import MeshPart
-from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth, pass_index_of
+from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
 from .geometry.raycam import GeometricRender, geometric_render, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
@@ -439,7 +439,7 @@ class Simulator(PaperAPI):
             self._renderer = Renderer()
         if check_ground_truth(self.ground_truth) == "geometry":
             # the pixel-centre cast runs while Blender renders (both release the GIL) and is
-            # kept for _depth_and_pass_index (geometry/pixel_truth.py)
+            # kept for _ground_truth_maps (geometry/pixel_truth.py)
             with ThreadPoolExecutor(1) as pool:
                 cast = pool.submit(self._pixel_hits, False)
                 raw = self._renderer.render()
@@ -447,26 +447,31 @@ class Simulator(PaperAPI):
         else:
             raw = self._renderer.render()
         t0 = time.perf_counter()
-        depth, index = self._depth_and_pass_index(raw)
+        depth, index, label_of_index, instance_of_index = self._ground_truth_maps(raw)
         coverage = None
         if raw.crypto_ids is not None:
             hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
             coverage = lambda seg: label_coverage(raw, hash_to_label, seg)  # noqa: E731
         sensitivity = self.segmentation_sensitivity if coverage is not None else 0.0
-        seg, inst = semantic_map(index, self._pass_table.labels, self._pass_table.instances, sensitivity, coverage)
+        seg, inst = semantic_map(index, label_of_index, instance_of_index, sensitivity, coverage)
         self.last_render_timings = dict(self._renderer.last_timings, labels=time.perf_counter() - t0)
         return RenderOutput(
             raw.rgb_display, depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
         )
 
-    def _depth_and_pass_index(self, raw) -> tuple[np.ndarray, np.ndarray]:
-        """Planar depth and object pass index (H, W) at the pixel centres, from the source
-        ``self.ground_truth`` names (engines without an object-index pass: by rays)."""
+    def _ground_truth_maps(self, raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Planar depth and an object index (H, W) at the pixel centres, from the source
+        ``self.ground_truth`` names, with the label and instance id of every index value
+        (0: none). The renderer's Object Index pass gives instanced copies of one object one
+        index (Blender's pass_index is per object); rays tell every copy apart (index = part
+        + 1). Engines without an object-index pass get their index from the rays."""
         if check_ground_truth(self.ground_truth) == "renderer" and raw.object_index is not None:
-            return raw.depth, raw.object_index
+            return raw.depth, raw.object_index, self._pass_table.labels, self._pass_table.instances
         hits = self._pixel_hits(normals=False)
         depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth
-        return depth, pass_index_of(hits, self._pass_table.of_part)
+        label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
+        return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], label_of_part]).astype(np.int32),
+                np.arange(-1, len(self._parts), dtype=np.int32))
 
     def render_geometry(self, normals: bool = True) -> GeometricRender:
         """The current view by ray casting the Simulator's geometry, one ray per pixel centre,

@@ -117,3 +117,40 @@ def test_filtered_objects_hide_what_is_behind_them_unlabelled(yard):
     sim.ground_truth = "renderer"  # Cycles' passes see the same
     cyc = sim.render()
     assert (cyc.seg[truck_px] == out.seg[truck_px]).mean() > 0.9
+
+
+def test_instanced_copies_get_their_own_ids(tmp_path):
+    """Blender's Object Index pass gives every copy of an instanced collection the source
+    object's pass index; the rays tell the copies apart, as ``object_names`` and the points do."""
+    import bpy
+
+    scenes.new_scene(W, H)
+    scenes.add_plane("Ground", (100, 100), (0, 0, 0))
+    coll = bpy.data.collections.new("CrateSet")
+    crate = bpy.data.objects.new("Crate", bpy.data.meshes.new("Crate"))
+    crate.data.from_pydata([(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0, 1)], [],
+                           [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    coll.objects.link(crate)
+    for k, x in enumerate((-1.5, 1.5)):
+        empty = bpy.data.objects.new(f"CrateCopy.{k:03d}", None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = coll
+        empty.location = (x, 6, 0)
+        bpy.context.scene.collection.objects.link(empty)
+    scenes.look_along_y((0, 0, 1.5))
+    sim = Simulator(scenes.save(tmp_path / "copies.blend"), segmentation_sensitivity=0.0, render_preset="preview",
+                    points_density=50)
+    copies = [i for i, n in enumerate(sim.object_names) if n.endswith("Crate#0") or "/Crate#" in n]
+    assert len(copies) == 2
+    out = sim.render()
+    seen = [int((out.instance == i).sum()) for i in copies]
+    assert min(seen) > 20  # both copies, each under its own id
+    assert np.array_equal(out.instance, sim.render_geometry(normals=False).instance)
+    crate_label = sim.labels.index("Crate")
+    assert np.array_equal(out.seg == crate_label, np.isin(out.instance, copies))
+    # the points on each copy carry that copy's id, as the pixels showing it do
+    assert set(np.unique(sim.point_instances)) >= set(copies)
+    sim.ground_truth = "renderer"  # the paper's passes: one pass index for both copies
+    cyc = sim.render()
+    on_copies = np.isin(out.instance, copies)
+    assert len(np.unique(cyc.instance[on_copies])) == 1 and cyc.instance[on_copies][0] in copies

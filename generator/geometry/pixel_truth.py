@@ -85,8 +85,3 @@ class PixelTruth:
         self._key, self._hits = key, hits
         return hits
 
-
-def pass_index_of(hits: PixelHits, pass_of_part: np.ndarray) -> np.ndarray:
-    """(H, W) int32 object pass index of the surface at each pixel centre (0: none, or a
-    filtered object), from the part hit and each part's pass index ``pass_of_part`` (P,)."""
-    return np.where(hits.part >= 0, pass_of_part[np.maximum(hits.part, 0)], 0).astype(np.int32)
