@@ -30,11 +30,12 @@ from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
+from .camera_moves import CameraMoves
 from .paper_api import PaperAPI
 from .passes import RenderOutput, label_coverage, semantic_map
 
 
-class Simulator(PaperAPI):
+class Simulator(CameraMoves, PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
@@ -118,6 +119,7 @@ class Simulator(PaperAPI):
             extracted, self.filter_object_names, instance_names, self.blend_file)
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
+        self._label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)  # (P,) int32
         self._geometry = SceneGeometry(self._parts)
         occluders, self._occluder_bindings = filtered_parts(extracted, self.filter_object_names)
         self._occluders = SceneGeometry(occluders) if occluders else None
@@ -320,29 +322,6 @@ class Simulator(PaperAPI):
         bcam.write_pose(m, self._camera)
         return False
 
-    def _move(self, axis: int, distance: float) -> bool:
-        d = check_number("distance", distance)
-        return self.set_world_from_camera(cam_model.translated_along_axis(self._world_from_camera, axis, d))
-
-    def move_camera_forward(self, distance: float) -> bool:
-        """Move along the optical axis (camera +z) by ``distance`` metres; True if refused."""
-        return self._move(2, distance)
-
-    def move_camera_right(self, distance: float) -> bool:
-        """Move along camera +x by ``distance`` metres; True if refused."""
-        return self._move(0, distance)
-
-    def move_camera_down(self, distance: float) -> bool:
-        """Move along camera +y (image down) by ``distance`` metres; True if refused."""
-        return self._move(1, distance)
-
-    def turn_camera_right(self, angle: float, degrees: bool = True) -> bool:
-        """Turn right (clockwise seen from above) about the world Z axis through the camera
-        centre; the horizon stays level. Never collides (returns False)."""
-        a = check_number("angle", angle)
-        a = math.radians(a) if degrees else a
-        return self.set_world_from_camera(cam_model.turned_about_world_z(self._world_from_camera, a), check_collisions=False)
-
     def respawn_camera(self) -> np.ndarray:
         """Move the camera to a random free spawn point with a random heading (pitch kept,
         roll zero). Without a CameraSpawn volume, return to the initial pose. Returns the pose."""
@@ -469,8 +448,7 @@ class Simulator(PaperAPI):
             return raw.depth, raw.object_index, self._pass_table.labels, self._pass_table.instances
         hits = self._pixel_hits(normals=False)
         depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth
-        label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
-        return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], label_of_part]).astype(np.int32),
+        return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], self._label_of_part]).astype(np.int32),
                 np.arange(-1, len(self._parts), dtype=np.int32))
 
     def render_geometry(self, normals: bool = True) -> GeometricRender:
@@ -482,8 +460,7 @@ class Simulator(PaperAPI):
         (seg and instance -1, depth and normal kept). See generator/geometry/pixel_truth.py."""
         self._check_current()
         hits = self._pixel_hits(normals=normals)
-        label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)
-        return geometric_render(hits, label_of_part, self.K, self._world_from_camera, self.frame)
+        return geometric_render(hits, self._label_of_part, self.K, self._world_from_camera, self.frame)
 
     def _pixel_hits(self, normals: bool):
         """The surface at every pixel centre of the current view (geometry/pixel_truth.py)."""
