@@ -8,10 +8,12 @@ there). For each preset, each device renders one untimed frame first (on a GPU t
 also loads the kernels: its time is reported as "first render"), then ``--repeats`` rounds of
 ``--frames``; the devices alternate by round. Agreement: for every frame of the preview preset,
 depth, label and instance maps of the GPU render against the CPU render (bit-equal share, and
-the largest depth difference).
+the largest depth difference), with the ground truth of ``--ground-truth``: ``geometry`` (the
+Simulator's default, cast by us on the CPU: expected bit-equal) or ``renderer`` (each device's
+own Cycles passes, docs/rendering.md "Ground truth").
 
 Usage: python benchmarks/gpu.py [--presets preview default high] [--frames 0 13 26] [--repeats 3]
-       [--devices cpu gpu] [--json results.json]
+       [--devices cpu gpu] [--ground-truth geometry|renderer] [--json results.json]
 Needs a machine where ``python -m generator.blender.devices`` names a GPU (else 'gpu' is a
 one-line error).
 """
@@ -72,10 +74,13 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path("/tmp/buildee-render-bench"),
                     help="site and 256-sample references (benchmarks/render.py makes them)")
     ap.add_argument("--json", type=Path, default=None, help="write the results here too")
+    ap.add_argument("--ground-truth", choices=["geometry", "renderer"], default="geometry",
+                    help="where depth, labels and ids come from (Simulator(ground_truth=...))")
     ap.add_argument("--save", type=Path, default=None, help="save each device's depth/label/instance of the frames (npz)")
     args = ap.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
-    sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview")
+    sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview",
+                    ground_truth=args.ground_truth)
     sim.configure_render(resolution=RESOLUTION)
     poses = orbit_poses(sim, args.seed)
     key = hashlib.sha1(json.dumps([vars(REFERENCE), bpy.app.version_string]).encode()).hexdigest()[:10]
@@ -84,7 +89,7 @@ def main() -> None:
         path = args.cache / f"ref-{args.seed}-orbit{i}-{key}.npy"
         if path.exists():
             refs[i] = np.load(path)
-    results: dict = {"frames": args.frames, "references": sorted(refs), "presets": {}}
+    results: dict = {"frames": args.frames, "references": sorted(refs), "ground_truth": args.ground_truth, "presets": {}}
     names = {}
     for preset in args.presets:
         per = {d: {"times": [], "quality": {}, "outputs": {}} for d in args.devices}
