@@ -6,7 +6,6 @@ import math
 import os
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -416,15 +415,10 @@ class Simulator(CameraMoves, PaperAPI):
         self._check_current()
         if self._renderer is None:
             self._renderer = Renderer()
-        if check_ground_truth(self.ground_truth) == "geometry":
-            # the pixel-centre cast runs while Blender renders (both release the GIL) and is
-            # kept for _ground_truth_maps (geometry/pixel_truth.py)
-            with ThreadPoolExecutor(1) as pool:
-                cast = pool.submit(self._pixel_hits, False)
-                raw = self._renderer.render()
-                cast.result()
-        else:
-            raw = self._renderer.render()
+        # the pixel-centre cast runs while Blender renders and is kept for _ground_truth_maps
+        # (geometry/pixel_truth.py)
+        cast = (lambda: self._pixel_hits(False)) if check_ground_truth(self.ground_truth) == "geometry" else None
+        raw = self._renderer.render(alongside=cast)
         t0 = time.perf_counter()
         depth, index, label_of_index, instance_of_index = self._ground_truth_maps(raw)
         coverage = None

@@ -5,8 +5,10 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
+import bpy
 import numpy as np
 import OpenEXR
 import pytest
@@ -15,7 +17,7 @@ import scenes
 from exporters.exr import read_frame_exr, write_frame_exr
 from generator import Simulator
 from generator.blender import egl
-from generator.blender.render import resolve_settings
+from generator.blender.render import Renderer, resolve_settings
 
 ROOT = Path(__file__).resolve().parents[1]
 W, H = 80, 60
@@ -345,3 +347,34 @@ def test_cli_device(finished, tmp_path):
         assert r.returncode == 2 and r.stdout == ""
         assert r.stderr.count("\n") == 1 and "no CUDA or OptiX GPU" in r.stderr
         assert not any((tmp_path / "gpu").glob("seed_*"))
+
+
+def test_work_alongside_runs_during_the_render_and_raises_its_errors(plane_blend):
+    """Renderer.render(alongside=...): started by the render itself (render() casts its
+    ground truth this way), finished before the call returns, its exception raised, and
+    Blender's handler list left as it was."""
+    sim = Simulator(plane_blend, points_density=1, render_preset="preview")
+    sim.configure_render(resolution=(16, 12))
+    renderer = Renderer()
+    marks = {}
+
+    def post(*_):
+        marks["render_post"] = time.perf_counter()
+
+    handlers = list(bpy.app.handlers.render_pre)
+    bpy.app.handlers.render_post.append(post)
+    try:
+        raw = renderer.render(alongside=lambda: marks.setdefault("alongside", time.perf_counter()))
+        assert raw.rgb_linear.shape == (12, 16, 3)
+        assert marks["alongside"] < marks["render_post"]  # began while Blender was rendering
+
+        def failing():
+            raise ValueError("simulated failure beside the render")
+
+        with pytest.raises(ValueError, match="simulated failure"):
+            renderer.render(alongside=failing)
+        assert os.listdir(renderer.tmpdir) == []
+        assert list(bpy.app.handlers.render_pre) == handlers
+    finally:
+        bpy.app.handlers.render_post.remove(post)
+        renderer.close()

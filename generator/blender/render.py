@@ -15,8 +15,11 @@ import glob
 import os
 import shutil
 import tempfile
+import threading
 import time
 import weakref
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import bpy
 
@@ -72,6 +75,32 @@ def _apply_settings(settings: RenderSettings) -> None:
             c.adaptive_threshold = settings.adaptive_threshold
 
 
+def _render_with(alongside: Callable[[], object] | None) -> None:
+    """``bpy.ops.render.render`` with ``alongside`` started in a thread by the render's own
+    ``render_pre`` handler (so it begins once Blender renders, not before)."""
+    if alongside is None:
+        bpy.ops.render.render(write_still=True)
+        return
+    started = threading.Event()
+
+    def start(*_):
+        started.set()
+
+    def run():
+        started.wait()
+        return alongside()
+
+    bpy.app.handlers.render_pre.append(start)
+    with ThreadPoolExecutor(1) as pool:
+        job = pool.submit(run)
+        try:
+            bpy.ops.render.render(write_still=True)
+        finally:
+            started.set()  # a render that failed before starting must not leave it waiting
+            bpy.app.handlers.render_pre.remove(start)
+        job.result()
+
+
 class Renderer:
     """Renders the open scene into :class:`RawPasses`, one Blender render per call."""
 
@@ -121,14 +150,18 @@ class Renderer:
         out.file_output_items.new("RGBA", "Image")
         tree.links.new(layers.outputs["Image"], out.inputs[0])
 
-    def render(self) -> RawPasses:
-        """One Blender render; returns its passes. Temporary files never outlive the call."""
+    def render(self, alongside: Callable[[], object] | None = None) -> RawPasses:
+        """One Blender render; returns its passes. Temporary files never outlive the call.
+
+        ``alongside`` (optional) runs in a thread once Blender has started rendering (which
+        releases Python's GIL), so CPU work that holds the GIL overlaps the render; it has
+        finished, and its exception is raised, before this returns."""
         require_gpu_context(bpy.context.scene.render.engine)
         devices.select(None)  # a file opened since the last settings renders on the CPU unless told
         try:
             t0 = time.perf_counter()
             with session.quiet():
-                bpy.ops.render.render(write_still=True)
+                _render_with(alongside)
             t1 = time.perf_counter()
             exr = glob.glob(os.path.join(self.tmpdir, "passes*.exr"))
             tif = glob.glob(os.path.join(self.tmpdir, "display*.tif*"))
