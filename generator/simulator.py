@@ -438,7 +438,7 @@ class Simulator(CameraMoves, PaperAPI):
         (0: none). The renderer's Object Index pass gives instanced copies of one object one
         index (Blender's pass_index is per object); rays tell every copy apart (index = part
         + 1). Engines without an object-index pass get their index from the rays."""
-        if check_ground_truth(self.ground_truth) == "renderer" and raw.object_index is not None:
+        if self.ground_truth == "renderer" and raw.object_index is not None:  # checked by render()
             return raw.depth, raw.object_index, self._pass_table.labels, self._pass_table.instances
         hits = self._pixel_hits(normals=False)
         depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth

@@ -26,6 +26,8 @@ def interrupt(signum=None, frame=None) -> None:
     from C++) cannot make the run go on: the run loop raises it again at its next turn."""
     INTERRUPTED.set()
     raise KeyboardInterrupt
+
+
 _EXIT_OF = {"done": EXIT_OK, "skipped": EXIT_OK, "failed": EXIT_FAILED, "conflict": EXIT_LEFT_ALONE,
             "corrupt": EXIT_LEFT_ALONE, "busy": EXIT_BUSY}
 

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .raycast import OCCLUSION_TOL_ABS, OCCLUSION_TOL_REL, SceneGeometry
+from .raycast import SceneGeometry
 from .visibility import ViewLimits, visible_points
+from .visibility_rules import cullable_parts, facing_away, segments_blocked
 
 DEFAULT_VIEWPOINTS = 256
 _HALF_FOV_TAN = 1.0 + 1e-3  # each cube face sees a hair more than 90 degrees
@@ -87,17 +88,16 @@ def visible_from(geometry: SceneGeometry, points: np.ndarray, normals: np.ndarra
     back of a solid whose bounding box leaves the camera out) and rule 4 (free segment, with
     the same tolerance). Equal to :func:`cube_map_visible`, at a fraction of its cost."""
     points = np.asarray(points, dtype=np.float64)
-    d = points - centre
+    centre = np.asarray(centre, dtype=np.float64)
+    dx, dy, dz = (points[:, k] - centre[k] for k in range(3))
     keep = np.ones(len(points), dtype=bool)
     if normals is not None and part_index is not None and len(points):
-        bounds = geometry.world_bounds()
-        outside = np.any((centre < bounds[:, 0]) | (centre > bounds[:, 1]), axis=1)
-        cullable = np.array([p.closed for p in geometry.parts], dtype=bool) & outside
-        keep = ~(cullable[part_index] & (np.einsum("ij,ij->i", normals, d) > 0))
+        normals = np.asarray(normals, dtype=np.float64)
+        keep = ~(cullable_parts(geometry, centre)[part_index]
+                 & facing_away(normals[:, 0], normals[:, 1], normals[:, 2], dx, dy, dz))
     idx = np.flatnonzero(keep)
-    dist = np.sqrt(np.einsum("ij,ij->i", d[idx], d[idx]))
     seen = np.zeros(len(points), dtype=bool)
-    seen[idx] = ~geometry.segments_blocked(centre, points[idx], OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * dist)
+    seen[idx] = ~segments_blocked(geometry, centre, dx[idx], dy[idx], dz[idx])
     return seen
 
 
