@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -13,9 +12,9 @@ import numpy as np
 
 from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
-from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts, label_of
+from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts
 from .blender.objects import SceneError, check_names, filtered_parts, object_table  # noqa: F401 (SceneError is public)
-from .blender.render import Renderer, RenderSettings, apply_settings, resolve_settings
+from .blender.render import RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
 from .checks import check_number
 from .geometry import camera as cam_model
@@ -23,7 +22,7 @@ from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.parts import MeshPart
 from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
-from .geometry.raycam import GeometricRender, geometric_render, labels_of_parts
+from .geometry.raycam import GeometricRender, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
 from .geometry.spawn import sample_spawn_points
@@ -31,7 +30,8 @@ from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
 from .paper_api import PaperAPI
-from .passes import RenderOutput, label_coverage, semantic_map
+from .passes import RenderOutput
+from .view_render import ViewRenderer
 
 
 class Simulator(CameraMoves, PaperAPI):
@@ -118,14 +118,14 @@ class Simulator(CameraMoves, PaperAPI):
             extracted, self.filter_object_names, instance_names, self.blend_file)
         self.label_ids = {name: i for i, name in enumerate(self.labels)}
         self.object_names: list[str] = [p.name for p in self._parts]
-        self._label_of_part = labels_of_parts([p.label for p in self._parts], self.label_ids)  # (P,) int32
         self._geometry = SceneGeometry(self._parts)
         occluders, self._occluder_bindings = filtered_parts(extracted, self.filter_object_names)
         self._occluders = SceneGeometry(occluders) if occluders else None
-        self._pixel_truth = PixelTruth(self._geometry, self._occluders)  # render()'s ground truth, render_geometry()
         self._points = SurfacePoints(self._parts, self.label_ids, self.points_density, self.seed)
-        self._pass_table = assign_pass_indices(self._parts, self.label_ids)
-        self._renderer: Renderer | None = None
+        # render() and render_geometry(): colour from Blender, ground truth from self.ground_truth
+        self._views = ViewRenderer(PixelTruth(self._geometry, self._occluders),
+                                   assign_pass_indices(self._parts, self.label_ids),
+                                   labels_of_parts([p.label for p in self._parts], self.label_ids), self.label_ids)
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
         self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
         self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
@@ -413,37 +413,10 @@ class Simulator(CameraMoves, PaperAPI):
         if engine is not None:
             raise ValueError(f"engine must be None (the scene's Blender engine) or 'raycast', got {engine!r}")
         self._check_current()
-        if self._renderer is None:
-            self._renderer = Renderer()
-        # the pixel-centre cast runs while Blender renders and is kept for _ground_truth_maps
-        # (geometry/pixel_truth.py)
-        cast = (lambda: self._pixel_hits(False)) if check_ground_truth(self.ground_truth) == "geometry" else None
-        raw = self._renderer.render(alongside=cast)
-        t0 = time.perf_counter()
-        depth, index, label_of_index, instance_of_index = self._ground_truth_maps(raw)
-        coverage = None
-        if raw.crypto_ids is not None:
-            hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
-            coverage = lambda seg: label_coverage(raw, hash_to_label, seg)  # noqa: E731
-        sensitivity = self.segmentation_sensitivity if coverage is not None else 0.0
-        seg, inst = semantic_map(index, label_of_index, instance_of_index, sensitivity, coverage)
-        self.last_render_timings = dict(self._renderer.last_timings, labels=time.perf_counter() - t0)
-        return RenderOutput(
-            raw.rgb_display, depth, seg, inst, raw.rgb_linear, self.K.copy(), self.get_world_from_camera(), self.frame
-        )
-
-    def _ground_truth_maps(self, raw) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Planar depth and an object index (H, W) at the pixel centres, from the source
-        ``self.ground_truth`` names, with the label and instance id of every index value
-        (0: none). The renderer's Object Index pass gives instanced copies of one object one
-        index (Blender's pass_index is per object); rays tell every copy apart (index = part
-        + 1). Engines without an object-index pass get their index from the rays."""
-        if self.ground_truth == "renderer" and raw.object_index is not None:  # checked by render()
-            return raw.depth, raw.object_index, self._pass_table.labels, self._pass_table.instances
-        hits = self._pixel_hits(normals=False)
-        depth = hits.depth.copy() if self.ground_truth == "geometry" else raw.depth
-        return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], self._label_of_part]).astype(np.int32),
-                np.arange(-1, len(self._parts), dtype=np.int32))
+        out = self._views.render(self._camera_model(), self._world_from_camera, self.frame,
+                                 self.segmentation_sensitivity, self.ground_truth)
+        self.last_render_timings = dict(self._views.last_timings)
+        return out
 
     def render_geometry(self, normals: bool = True) -> GeometricRender:
         """The current view by ray casting the Simulator's geometry, one ray per pixel centre,
@@ -453,10 +426,7 @@ class Simulator(CameraMoves, PaperAPI):
         (colour needs a renderer). Objects in ``filter_object_names`` are unlabelled surfaces
         (seg and instance -1, depth and normal kept). See generator/geometry/pixel_truth.py."""
         self._check_current()
-        hits = self._pixel_hits(normals=normals)
-        return geometric_render(hits, self._label_of_part, self.K, self._world_from_camera, self.frame)
+        return self._views.render_geometry(self._camera_model(), self._world_from_camera, self.frame, normals)
 
-    def _pixel_hits(self, normals: bool):
-        """The surface at every pixel centre of the current view (geometry/pixel_truth.py)."""
-        camera = CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end)
-        return self._pixel_truth.hits(camera, self._world_from_camera, normals)
+    def _camera_model(self) -> CameraModel:
+        return CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end)

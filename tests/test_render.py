@@ -18,6 +18,7 @@ from exporters.exr import read_frame_exr, write_frame_exr
 from generator import Simulator
 from generator.blender import egl
 from generator.blender.render import Renderer, resolve_settings
+from generator.geometry.raycast import SceneGeometry
 
 ROOT = Path(__file__).resolve().parents[1]
 W, H = 80, 60
@@ -40,9 +41,11 @@ def plane_blend(tmp_path_factory):
     return tilted_plane_scene(tmp_path_factory.mktemp("render") / "plane.blend")
 
 
-@pytest.fixture(scope="module")
-def rendered(plane_blend):
-    sim = Simulator(plane_blend, points_density=400, segmentation_sensitivity=0.0, render_preset="preview")
+@pytest.fixture(scope="module", params=["geometry", "renderer"])
+def rendered(plane_blend, request):
+    """A render with each ground-truth source: the ray cast (default) and Cycles' passes."""
+    sim = Simulator(plane_blend, points_density=400, segmentation_sensitivity=0.0, render_preset="preview",
+                    ground_truth=request.param)
     return sim, sim.render()
 
 
@@ -78,7 +81,7 @@ def test_unprojected_depth_lands_on_surfaces(rendered):
     pts = sim.depth_to_world_points(out.depth)
     valid = np.isfinite(out.depth)
     # exact float64 distances (open3d's float32 distance query is off by ~0.3 mm on thin triangles)
-    d = distance_to_mesh(pts[valid], scene_triangles(sim._parts))
+    d = distance_to_mesh(pts[valid], scene_triangles(sim.scene_parts()))
     assert (d < 1e-3).mean() >= 0.999, f"{(d >= 1e-3).sum()} of {valid.sum()} pixels off the surfaces"
 
 
@@ -88,8 +91,9 @@ def test_labels_match_the_surface_at_pixel_centres(rendered):
 
     pose = sim.get_world_from_camera()
     dirs = (pixel_rays(sim.K, W, H) @ pose[:3, :3].T).reshape(-1, 3)
-    t, part = sim._geometry.cast(np.broadcast_to(pose[:3, 3], dirs.shape), dirs)
-    labels = np.array([sim.label_ids[p.label] for p in sim._parts])
+    parts = sim.scene_parts()
+    t, part = SceneGeometry(parts).cast(np.broadcast_to(pose[:3, 3], dirs.shape), dirs)
+    labels = np.array([sim.label_ids[p.label] for p in parts])
     expected = np.where(part >= 0, labels[np.maximum(part, 0)], -1).reshape(H, W)
     agree = (out.seg == expected).mean()
     assert agree >= 0.999, f"labels agree on {agree:.4%} of pixels"
@@ -216,8 +220,9 @@ def test_resolution_override_updates_intrinsics(plane_blend):
 def test_temporary_files_are_private_and_cleaned(plane_blend, monkeypatch):
     sim = Simulator(plane_blend, points_density=1, render_preset="preview")
     sim.configure_render(resolution=(16, 12))
-    sim.render()
-    tmp = sim._renderer.tmpdir
+    renderer = Renderer()  # what Simulator.render() renders with, on the scene it opened
+    renderer.render()
+    tmp = renderer.tmpdir
     assert str(os.getpid()) in os.path.basename(tmp) and os.listdir(tmp) == []
     import generator.blender.render as render_mod
 
@@ -226,9 +231,9 @@ def test_temporary_files_are_private_and_cleaned(plane_blend, monkeypatch):
 
     monkeypatch.setattr(render_mod, "read_blender_exr", broken)
     with pytest.raises(OSError, match="simulated"):
-        sim.render()
+        renderer.render()
     assert os.listdir(tmp) == []
-    sim._renderer.close()
+    renderer.close()
     assert not os.path.exists(tmp)
 
 

@@ -20,9 +20,11 @@ def walls(tmp_path_factory):
 
 
 def _visibility_of(sim, points):
-    """Visibility of extra probe points, evaluated with the simulator's own rule."""
+    """Visibility of extra probe points, evaluated with the simulator's own rule on its
+    (static) scene's triangles."""
+    assert not sim.dynamic_objects
     return visible_points(
-        sim._geometry, np.asarray(points, float), None, None, sim.get_world_from_camera(), sim.K,
+        SceneGeometry(sim.scene_parts()), np.asarray(points, float), None, None, sim.get_world_from_camera(), sim.K,
         sim.width, sim.height, ViewLimits(sim.clip_start, min(sim.clip_end, sim.max_pcl_depth)),
     )
 
@@ -86,7 +88,10 @@ def test_backface_rule_agrees_with_pure_ray_casting(walls):
     except at silhouettes where the ray enters the solid within the occlusion tolerance."""
     sim = Simulator(walls, points_density=30)
     rng = np.random.default_rng(0)
-    pts = sim._points
+    assert not sim.dynamic_objects  # static parts: the sample's local frame is the world
+    sample = sim.surface_sample()
+    world, normals, part = sim.point_positions, sample["local_normals"], sample["part"]
+    geometry = SceneGeometry(sim.scene_parts())
     checked = 0
     for _ in range(8):
         pose = sim.get_world_from_camera()
@@ -94,16 +99,16 @@ def test_backface_rule_agrees_with_pure_ray_casting(walls):
         yaw = rng.uniform(0, 2 * math.pi)
         c, s = math.cos(yaw), math.sin(yaw)
         pose[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ pose[:3, :3]
-        args = (sim._geometry, pts.world)
+        args = (geometry, world)
         tail = (pose, sim.K, sim.width, sim.height, ViewLimits(sim.clip_start, sim.clip_end))
-        fast = visible_points(*args, pts.world_normals, pts.part, *tail)
+        fast = visible_points(*args, normals, part, *tail)
         slow = visible_points(*args, None, None, *tail)
         checked += slow.sum()
         differ = np.flatnonzero(fast != slow)
         assert not np.any(fast[differ])  # the rule only ever hides
         centre = pose[:3, 3]
-        d = np.linalg.norm(pts.world[differ] - centre, axis=1)
-        t, _ = sim._geometry.cast(np.repeat(centre[None], len(differ), 0), (pts.world[differ] - centre) / d[:, None])
+        d = np.linalg.norm(world[differ] - centre, axis=1)
+        t, _ = geometry.cast(np.repeat(centre[None], len(differ), 0), (world[differ] - centre) / d[:, None])
         assert np.all(d - t < OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * d + 1e-6)
         assert len(differ) <= 1e-3 * max(slow.sum(), 1) + 2
     assert checked > 1000

@@ -1,0 +1,91 @@
+"""What ``Simulator.render()`` and ``Simulator.render_geometry()`` do: a Blender render for
+colour, with depth, labels and instance ids from the Simulator's ``ground_truth`` source
+(docs/rendering.md "Ground truth"). The Simulator owns one :class:`ViewRenderer` and hands
+it the view (pose, camera, frame) at each call.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .blender.extract import PassTable, label_of
+from .blender.render import Renderer
+from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
+from .geometry.raycam import GeometricRender, PixelHits, geometric_render
+from .passes import RenderOutput, label_coverage, semantic_map
+
+
+class ViewRenderer:
+    """Renders views of one scene.
+
+    ``pixel_truth`` casts the pixel-centre rays, ``pass_table`` maps Blender's Object Index
+    pass to labels and instances (``ground_truth="renderer"``), ``label_of_part`` (P,) int32
+    gives each part's label id and ``label_ids`` maps label names to ids. The Blender
+    renderer (and its private folder of temporary files) is made at the first :meth:`render`.
+    """
+
+    def __init__(self, pixel_truth: PixelTruth, pass_table: PassTable, label_of_part: np.ndarray,
+                 label_ids: dict[str, int]):
+        self.pixel_truth = pixel_truth
+        self.pass_table = pass_table
+        self.label_of_part = label_of_part
+        self.label_ids = label_ids
+        self.renderer: Renderer | None = None
+        self.last_timings: dict[str, float] = {}  # seconds per stage of the last render()
+
+    def hits(self, camera: CameraModel, world_from_camera: np.ndarray, normals: bool) -> PixelHits:
+        """The surface at every pixel centre of the view (geometry/pixel_truth.py)."""
+        return self.pixel_truth.hits(camera, world_from_camera, normals)
+
+    def render(self, camera: CameraModel, world_from_camera: np.ndarray, frame: int,
+               segmentation_sensitivity: float, ground_truth: str) -> RenderOutput:
+        """One Blender render of the view (the scene's camera already at ``world_from_camera``),
+        with depth, labels and ids from ``ground_truth`` ('geometry' or 'renderer')."""
+        ground_truth = check_ground_truth(ground_truth)
+        if self.renderer is None:
+            self.renderer = Renderer()
+        # with ray-cast ground truth the pixel-centre cast runs while Blender renders; the
+        # answer is kept by pixel_truth for _ground_truth_maps
+        cast = (lambda: self.hits(camera, world_from_camera, False)) if ground_truth == "geometry" else None
+        raw = self.renderer.render(alongside=cast)
+        t0 = time.perf_counter()
+        maps = self._ground_truth_maps(raw, camera, world_from_camera, ground_truth)
+        depth, index, label_of_index, instance_of_index = maps
+        coverage = None
+        if raw.crypto_ids is not None:
+            hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
+            coverage = lambda seg: label_coverage(raw, hash_to_label, seg)  # noqa: E731
+        sensitivity = segmentation_sensitivity if coverage is not None else 0.0
+        seg, inst = semantic_map(index, label_of_index, instance_of_index, sensitivity, coverage)
+        self.last_timings = dict(self.renderer.last_timings, labels=time.perf_counter() - t0)
+        return RenderOutput(raw.rgb_display, depth, seg, inst, raw.rgb_linear, np.array(camera.K, dtype=np.float64),
+                            np.array(world_from_camera, dtype=np.float64), int(frame))
+
+    def render_geometry(self, camera: CameraModel, world_from_camera: np.ndarray, frame: int,
+                        normals: bool) -> GeometricRender:
+        """The view by ray casting alone (no Blender render, no colour)."""
+        hits = self.hits(camera, world_from_camera, normals)
+        return geometric_render(hits, self.label_of_part, camera.K, world_from_camera, frame)
+
+    def _ground_truth_maps(self, raw, camera: CameraModel, world_from_camera: np.ndarray,
+                           ground_truth: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Planar depth and an object index (H, W) at the pixel centres, from the source
+        ``ground_truth`` names, with the label and instance id of every index value
+        (0: none). The renderer's Object Index pass gives instanced copies of one object one
+        index (Blender's pass_index is per object); rays tell every copy apart (index = part
+        + 1). Engines without an object-index pass get their index from the rays."""
+        if ground_truth == "renderer" and raw.object_index is not None:
+            return raw.depth, raw.object_index, self.pass_table.labels, self.pass_table.instances
+        hits = self.hits(camera, world_from_camera, normals=False)
+        depth = hits.depth.copy() if ground_truth == "geometry" else raw.depth
+        parts = len(self.label_of_part)
+        return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], self.label_of_part]).astype(np.int32),
+                np.arange(-1, parts, dtype=np.int32))
+
+    def close(self) -> None:
+        """Remove the renderer's temporary folder (a later render makes a new one)."""
+        if self.renderer is not None:
+            self.renderer.close()
+            self.renderer = None
