@@ -83,6 +83,9 @@ def test_any_direction_equals_a_cube_map_through_the_visibility_rules(sealed_sce
         a = visible_from(geometry, pts, normals, part, centre)
         b = cube_map_visible(geometry, pts, normals, part, centre)
         assert a.any() and np.array_equal(a, b)
+    # without normals (no rule 3): rays alone
+    a, b = (f(geometry, pts, None, None, views[0]) for f in (visible_from, cube_map_visible))
+    assert a.any() and not a.all() and np.array_equal(a, b)
 
 
 def test_viewpoints_are_a_spread_deterministic_prefix():

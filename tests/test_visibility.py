@@ -222,12 +222,15 @@ def test_kernel_arithmetic_rounds_as_the_rules():
 
 def test_kernels_have_no_fused_multiply_add():
     """numba is not allowed to fuse a * b + c into one rounding (it would change the bits of
-    the rules' tests): no FMA instruction in the compiled code of the visibility kernel."""
+    the rules' tests): no FMA instruction in the compiled code of the visibility kernels
+    (compute_point_cloud's and the observability mask's)."""
     import re
 
     import numba
 
     from generator.geometry import point_block_kernels as kernels
+    from generator.geometry.observability import visible_from
+    from generator.geometry.omni_kernels import omni_rays
 
     sim_points = np.random.default_rng(0).uniform(-5, 5, (500, 3))
     ground = MeshPart("Ground", "Ground", np.array([[-50, -50, -6], [50, -50, -6], [50, 50, -6], [-50, 50, -6.0]]),
@@ -236,8 +239,9 @@ def test_kernels_have_no_fused_multiply_add():
     K = np.array([[50, 0, 32], [0, 50, 24], [0, 0, 1.0]])
     normals = np.tile([0, 0, 1.0], (500, 1))
     visible_points(SceneGeometry([ground]), sim_points, normals, np.zeros(500, np.int32), pose, K, 64, 48)
+    visible_from(SceneGeometry([ground]), sim_points, normals, np.zeros(500, np.int32), np.zeros(3))
     fma = re.compile(r"^\s*(v?f(n)?m(add|sub)\w*|fml[as]\w*)\s", re.MULTILINE | re.IGNORECASE)
-    for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of):
+    for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays):
         if not kernel.signatures:
             kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))
         # numba shows no code of a function loaded from its disk cache: compile it afresh,

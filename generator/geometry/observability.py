@@ -23,7 +23,8 @@ import numpy as np
 
 from .raycast import SceneGeometry
 from .visibility import ViewLimits, visible_points
-from .visibility_rules import cullable_parts, facing_away, segments_blocked
+from .omni_kernels import omni_rays
+from .visibility_rules import cullable_parts
 
 DEFAULT_VIEWPOINTS = 256
 _HALF_FOV_TAN = 1.0 + 1e-3  # each cube face sees a hair more than 90 degrees
@@ -80,25 +81,46 @@ def cube_map_visible(geometry: SceneGeometry, points: np.ndarray, normals: np.nd
     return seen
 
 
+class OmniSweep:
+    """Points (N, 3) with their outward ``normals`` (N, 3) and ``part_index`` (N,) (both
+    optional, as :func:`.visibility.visible_points` takes them: without them rule 3 is not
+    applied), laid out once for :meth:`visible` from many viewpoints."""
+
+    def __init__(self, points: np.ndarray, normals: np.ndarray | None, part_index: np.ndarray | None):
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = len(points)
+        self.xyz = np.ascontiguousarray(points.T)
+        rule3 = normals is not None and part_index is not None
+        self.nxyz = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).T) if rule3 else np.zeros((3, 0))
+        self.part = np.ascontiguousarray(part_index, dtype=np.int64) if rule3 else np.zeros(0, np.int64)
+        self.rule3 = rule3
+        self.rays = np.empty((n, 6), dtype=np.float32)  # buffers, reused by every call
+        self.pos = np.empty(n, dtype=np.int64)
+
+    def visible(self, geometry: SceneGeometry, centre: np.ndarray, todo: np.ndarray) -> np.ndarray:
+        """(M,) bool: which of the points ``todo`` (M,) (indices) are visible from ``centre``
+        (3,) looking in any direction (:func:`visible_from`)."""
+        centre = np.asarray(centre, dtype=np.float64)
+        cullable = cullable_parts(geometry, centre) if self.rule3 else np.zeros(0, dtype=bool)
+        seen = np.zeros(len(todo), dtype=bool)
+        m = omni_rays(self.xyz, self.nxyz, self.part, cullable, np.asarray(todo, dtype=np.int64), centre, seen,
+                      self.pos, self.rays)
+        if m:
+            blocked = geometry.rays_blocked(self.rays[:m])
+            seen[self.pos[:m][~blocked]] = True
+        return seen
+
+
 def visible_from(geometry: SceneGeometry, points: np.ndarray, normals: np.ndarray | None,
                  part_index: np.ndarray | None, centre: np.ndarray) -> np.ndarray:
     """(N,) bool: points visible from ``centre`` (3,) looking in any direction, no depth
     limit: the visibility rules with rule 1 dropped (some direction always frames the point)
     and rule 2 reduced to z > 0 (some direction always has it in front): rule 3 (not on the
     back of a solid whose bounding box leaves the camera out) and rule 4 (free segment, with
-    the same tolerance). Equal to :func:`cube_map_visible`, at a fraction of its cost."""
-    points = np.asarray(points, dtype=np.float64)
-    centre = np.asarray(centre, dtype=np.float64)
-    dx, dy, dz = (points[:, k] - centre[k] for k in range(3))
-    keep = np.ones(len(points), dtype=bool)
-    if normals is not None and part_index is not None and len(points):
-        normals = np.asarray(normals, dtype=np.float64)
-        keep = ~(cullable_parts(geometry, centre)[part_index]
-                 & facing_away(normals[:, 0], normals[:, 1], normals[:, 2], dx, dy, dz))
-    idx = np.flatnonzero(keep)
-    seen = np.zeros(len(points), dtype=bool)
-    seen[idx] = ~segments_blocked(geometry, centre, dx[idx], dy[idx], dz[idx])
-    return seen
+    the same tolerance), by the kernel of :mod:`.omni_kernels`. Equal to
+    :func:`cube_map_visible`, at a fraction of its cost."""
+    sweep = OmniSweep(points, normals, part_index)
+    return sweep.visible(geometry, centre, np.arange(sweep.xyz.shape[1]))
 
 
 def observable_mask(geometry: SceneGeometry, points: np.ndarray, normals: np.ndarray | None,
@@ -110,23 +132,18 @@ def observable_mask(geometry: SceneGeometry, points: np.ndarray, normals: np.nda
     them. ``counts``: if a list, receives the number of observable points after each
     viewpoint (the convergence curve). Only points not yet seen are tested from the next
     viewpoint."""
-    points = np.asarray(points, dtype=np.float64)
-    observable = np.zeros(len(points), dtype=bool)
+    sweep = OmniSweep(points, normals, part_index)
+    n = sweep.xyz.shape[1]
+    observable = np.zeros(n, dtype=bool)
     viewpoints = np.asarray(viewpoints, dtype=np.float64).reshape(-1, 3)
-    todo = np.arange(len(points))
-    pts = points
-    nrm = None if normals is None else np.asarray(normals, dtype=np.float64)
-    part = None if part_index is None else np.asarray(part_index)
+    todo = np.arange(n)
     order = range(len(viewpoints)) if progress is None else progress(range(len(viewpoints)))
     for k in order:
         if len(todo):
-            seen = visible_from(geometry, pts, nrm, part, viewpoints[k])
+            seen = sweep.visible(geometry, viewpoints[k], todo)
             if seen.any():
                 observable[todo[seen]] = True
-                keep = ~seen
-                todo, pts = todo[keep], pts[keep]
-                nrm = None if nrm is None else nrm[keep]
-                part = None if part is None else part[keep]
+                todo = todo[~seen]
         if counts is not None:
-            counts.append(len(points) - len(todo))
+            counts.append(n - len(todo))
     return observable
