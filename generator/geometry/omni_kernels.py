@@ -4,7 +4,7 @@ every point that passes it, written straight into a float32 ray array.
 
 The per-point arithmetic is that of :mod:`.visibility_rules` (``facing_away``,
 ``occlusion_rays``), operation for operation and in the same order, through the shared
-helper :func:`.point_block_kernels.segment_keep` (numba without ``fastmath`` neither
+helpers :func:`.point_block_kernels.segment_keep` and ``write_ray`` (numba without ``fastmath`` neither
 reorders nor fuses multiply-adds; tests/test_visibility.py checks the compiled code), so
 the answers are the same bits as the numpy evaluation of the rules
 (tests/test_observability.py compares with the six-view cube map through
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .point_block_kernels import segment_keep
+from .point_block_kernels import segment_keep, write_ray
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -44,10 +44,7 @@ def omni_rays(xyz, nxyz, part, cullable, todo, c, seen, pos, rays):
         if keep == 0.0:  # closer than the tolerance: never hidden
             seen[k] = True
             continue
-        rays[m, 0], rays[m, 1], rays[m, 2] = ox, oy, oz
-        rays[m, 3] = np.float32(dx * keep)
-        rays[m, 4] = np.float32(dy * keep)
-        rays[m, 5] = np.float32(dz * keep)
+        write_ray(rays, m, ox, oy, oz, dx, dy, dz, keep)
         pos[m] = k
         m += 1
     return m

@@ -52,6 +52,17 @@ def segment_keep(dx, dy, dz):
     return keep
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def write_ray(rays, m, ox, oy, oz, dx, dy, dz, keep):
+    """Row ``m`` of the float32 ray array ``rays``: rule 4's segment from the camera centre
+    (``ox, oy, oz``, float32) along the offset ``keep`` * (dx, dy, dz) (as
+    :func:`.visibility_rules.occlusion_rays`: the product in float64, then rounded)."""
+    rays[m, 0], rays[m, 1], rays[m, 2] = ox, oy, oz
+    rays[m, 3] = np.float32(dx * keep)
+    rays[m, 4] = np.float32(dy * keep)
+    rays[m, 5] = np.float32(dz * keep)
+
+
 @numba.njit(cache=True, nogil=True)
 def view_coords_of(dx, dy, dz, a_z, a_u, a_v):
     """:func:`view_coords` over arrays (M,) each: (3, M) (for the tests of the arithmetic)."""
@@ -177,10 +188,7 @@ def select_rays(block_first, block_groups, block_centre, block_half, block_exten
                     answers[p] = VISIBLE
                     n_settled += 1
                     continue
-                rays[m, 0], rays[m, 1], rays[m, 2] = ox, oy, oz
-                rays[m, 3] = np.float32(dx * keep)
-                rays[m, 4] = np.float32(dy * keep)
-                rays[m, 5] = np.float32(dz * keep)
+                write_ray(rays, m, ox, oy, oz, dx, dy, dz, keep)
                 pos[m] = p
                 m += 1
     counts[IN_VIEW], counts[CULLED], counts[ONE_BY_ONE], counts[SETTLED] = n_in, n_culled, n_one, n_settled
