@@ -88,6 +88,19 @@ def test_any_direction_equals_a_cube_map_through_the_visibility_rules(sealed_sce
     assert a.any() and not a.all() and np.array_equal(a, b)
 
 
+def test_bad_inputs_are_refused_before_the_kernel(sealed_scene):
+    parts, pts, normals, part, views = sealed_scene
+    geometry = SceneGeometry(parts)
+    with pytest.raises(ValueError, match="normals must have shape"):
+        visible_from(geometry, pts, normals[:-1], part, views[0])
+    with pytest.raises(ValueError, match="part_index goes up to 4"):
+        visible_from(geometry, pts, normals, np.where(part == 3, 4, part), views[0])
+    with pytest.raises(ValueError, match="part indices >= 0"):
+        observable_mask(geometry, pts, normals, part - 1, views)
+    with pytest.raises(ValueError, match="points must have shape"):
+        visible_from(geometry, pts[:, :2], None, None, views[0])
+
+
 def test_viewpoints_are_a_spread_deterministic_prefix():
     rng = np.random.default_rng(1)
     pool = rng.uniform(0, 10, (500, 3))

@@ -217,13 +217,31 @@ def test_resolution_override_updates_intrinsics(plane_blend):
     assert out.depth.shape == (30, 40) and np.allclose(out.K, sim.K)
 
 
+def stat_mode(path: str) -> int:
+    return os.stat(path).st_mode & 0o777
+
+
+def _render_folders() -> set[str]:
+    """This process's render folders (docs/rendering.md: /dev/shm, else the temp folder)."""
+    import glob
+    import tempfile
+
+    pattern = f"buildee-render-{os.getpid()}-*"
+    return {p for base in ("/dev/shm", tempfile.gettempdir()) for p in glob.glob(os.path.join(base, pattern))}
+
+
 def test_temporary_files_are_private_and_cleaned(plane_blend, monkeypatch):
+    import gc
+
+    before = _render_folders()
     sim = Simulator(plane_blend, points_density=1, render_preset="preview")
     sim.configure_render(resolution=(16, 12))
-    renderer = Renderer()  # what Simulator.render() renders with, on the scene it opened
-    renderer.render()
-    tmp = renderer.tmpdir
-    assert str(os.getpid()) in os.path.basename(tmp) and os.listdir(tmp) == []
+    assert _render_folders() == before  # made at the first render, not before
+    sim.render()
+    made = _render_folders() - before
+    assert len(made) == 1
+    tmp = made.pop()
+    assert stat_mode(tmp) == 0o700 and os.listdir(tmp) == []  # private, emptied after the render
     import generator.blender.render as render_mod
 
     def broken(path):
@@ -231,10 +249,11 @@ def test_temporary_files_are_private_and_cleaned(plane_blend, monkeypatch):
 
     monkeypatch.setattr(render_mod, "read_blender_exr", broken)
     with pytest.raises(OSError, match="simulated"):
-        renderer.render()
-    assert os.listdir(tmp) == []
-    renderer.close()
-    assert not os.path.exists(tmp)
+        sim.render()
+    assert os.listdir(tmp) == []  # emptied when a render fails too
+    del sim
+    gc.collect()
+    assert not os.path.exists(tmp)  # removed when the Simulator goes away
 
 
 def test_engine_without_egl_fails_cleanly(plane_blend, monkeypatch):

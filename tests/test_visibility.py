@@ -230,7 +230,7 @@ def test_kernels_have_no_fused_multiply_add():
 
     from generator.geometry import point_block_kernels as kernels
     from generator.geometry.observability import visible_from
-    from generator.geometry.omni_kernels import omni_rays
+    from generator.geometry.point_block_kernels import omni_rays
 
     sim_points = np.random.default_rng(0).uniform(-5, 5, (500, 3))
     ground = MeshPart("Ground", "Ground", np.array([[-50, -50, -6], [50, -50, -6], [50, 50, -6], [-50, 50, -6.0]]),

@@ -23,7 +23,7 @@ import numpy as np
 
 from .raycast import SceneGeometry
 from .visibility import ViewLimits, visible_points
-from .omni_kernels import omni_rays
+from .point_block_kernels import omni_rays
 from .visibility_rules import cullable_parts
 
 DEFAULT_VIEWPOINTS = 256
@@ -87,24 +87,38 @@ class OmniSweep:
     applied), laid out once for :meth:`visible` from many viewpoints."""
 
     def __init__(self, points: np.ndarray, normals: np.ndarray | None, part_index: np.ndarray | None):
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"points must have shape (N, 3), got {points.shape}")
         n = len(points)
         self.xyz = np.ascontiguousarray(points.T)
         rule3 = normals is not None and part_index is not None
-        self.nxyz = np.ascontiguousarray(np.asarray(normals, dtype=np.float64).T) if rule3 else np.zeros((3, 0))
-        self.part = np.ascontiguousarray(part_index, dtype=np.int64) if rule3 else np.zeros(0, np.int64)
+        self.nxyz, self.part = np.zeros((3, 0)), np.zeros(0, np.int64)
+        if rule3:
+            normals, part_index = np.asarray(normals, dtype=np.float64), np.asarray(part_index)
+            if normals.shape != (n, 3) or part_index.shape != (n,):
+                raise ValueError(f"normals must have shape ({n}, 3) and part_index ({n},), got {normals.shape} "
+                                 f"and {part_index.shape}")
+            if n and part_index.min() < 0:
+                raise ValueError("part_index must hold part indices >= 0")
+            self.nxyz, self.part = np.ascontiguousarray(normals.T), np.ascontiguousarray(part_index, dtype=np.int64)
         self.rule3 = rule3
+        self.parts_needed = int(self.part.max()) + 1 if len(self.part) else 0
         self.rays = np.empty((n, 6), dtype=np.float32)  # buffers, reused by every call
         self.pos = np.empty(n, dtype=np.int64)
 
     def visible(self, geometry: SceneGeometry, centre: np.ndarray, todo: np.ndarray) -> np.ndarray:
         """(M,) bool: which of the points ``todo`` (M,) (indices) are visible from ``centre``
         (3,) looking in any direction (:func:`visible_from`)."""
-        centre = np.asarray(centre, dtype=np.float64)
+        centre = np.asarray(centre, dtype=np.float64).reshape(3)
+        todo = np.asarray(todo, dtype=np.int64)
+        if len(todo) and (todo.min() < 0 or todo.max() >= self.xyz.shape[1]):
+            raise ValueError(f"todo must index the {self.xyz.shape[1]} points")
         cullable = cullable_parts(geometry, centre) if self.rule3 else np.zeros(0, dtype=bool)
+        if self.rule3 and self.parts_needed > len(cullable):
+            raise ValueError(f"part_index goes up to {self.parts_needed - 1}; the geometry has {len(cullable)} parts")
         seen = np.zeros(len(todo), dtype=bool)
-        m = omni_rays(self.xyz, self.nxyz, self.part, cullable, np.asarray(todo, dtype=np.int64), centre, seen,
-                      self.pos, self.rays)
+        m = omni_rays(self.xyz, self.nxyz, self.part, cullable, todo, centre, seen, self.pos, self.rays)
         if m:
             blocked = geometry.rays_blocked(self.rays[:m])
             seen[self.pos[:m][~blocked]] = True
@@ -117,7 +131,7 @@ def visible_from(geometry: SceneGeometry, points: np.ndarray, normals: np.ndarra
     limit: the visibility rules with rule 1 dropped (some direction always frames the point)
     and rule 2 reduced to z > 0 (some direction always has it in front): rule 3 (not on the
     back of a solid whose bounding box leaves the camera out) and rule 4 (free segment, with
-    the same tolerance), by the kernel of :mod:`.omni_kernels`. Equal to
+    the same tolerance), by the kernel ``point_block_kernels.omni_rays``. Equal to
     :func:`cube_map_visible`, at a fraction of its cost."""
     sweep = OmniSweep(points, normals, part_index)
     return sweep.visible(geometry, centre, np.arange(sweep.xyz.shape[1]))
