@@ -23,7 +23,8 @@ class ViewRenderer:
     ``pixel_truth`` casts the pixel-centre rays, ``pass_table`` maps Blender's Object Index
     pass to labels and instances (``ground_truth="renderer"``), ``label_of_part`` (P,) int32
     gives each part's label id and ``label_ids`` maps label names to ids. The Blender
-    renderer (and its private folder of temporary files) is made at the first :meth:`render`.
+    renderer (and its private folder of temporary files) is made at the first :meth:`render`;
+    the folder is removed when the renderer is garbage-collected (with its Simulator).
     """
 
     def __init__(self, pixel_truth: PixelTruth, pass_table: PassTable, label_of_part: np.ndarray,
@@ -83,9 +84,3 @@ class ViewRenderer:
         parts = len(self.label_of_part)
         return (depth, (hits.part + 1).astype(np.int32), np.concatenate([[-1], self.label_of_part]).astype(np.int32),
                 np.arange(-1, parts, dtype=np.int32))
-
-    def close(self) -> None:
-        """Remove the renderer's temporary folder (a later render makes a new one)."""
-        if self.renderer is not None:
-            self.renderer.close()
-            self.renderer = None
