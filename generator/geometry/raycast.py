@@ -18,6 +18,8 @@ o3d = import_open3d()
 # A point counts as visible if nothing is hit closer than ``d - tol`` along the segment
 # from the camera centre, with tol = OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * d (metres).
 # It absorbs float32 round-off of the hit on the point's own triangle at grazing angles.
+# The kernels of point_block_kernels.py compile these values in and numba's disk cache
+# does not see a change here: after changing them, delete generator/geometry/__pycache__.
 OCCLUSION_TOL_ABS = 1e-3
 OCCLUSION_TOL_REL = 1e-4
 
