@@ -24,15 +24,6 @@ W, H, T = 64, 48, 3
 YAW = math.radians(30)
 
 
-def _linear(obj):
-    from bpy_extras import anim_utils
-
-    ad = obj.animation_data
-    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
-        for key in fc.keyframe_points:
-            key.interpolation = "LINEAR"
-
-
 def site(path):
     """Ground, a yawed skip (2 x 1 x 0.8 m, 30 degrees), a crate, a truck driving 1 m per frame
     with a rolling wheel, and a long fence running out of the picture."""
@@ -45,14 +36,14 @@ def site(path):
     truck.keyframe_insert("location", frame=1)
     truck.location.x = 6.0
     truck.keyframe_insert("location", frame=11)
-    _linear(truck)
+    scenes.make_linear(truck)
     wheel = scenes.add_cylinder("Wheel", 0.5, 0.2, (-4, 4.9, 0.5), rotation=(math.pi / 2, 0, 0), segments=12)
     wheel.parent = truck
     wheel.matrix_parent_inverse = truck.matrix_world.inverted()
     wheel.keyframe_insert("rotation_euler", frame=1)
     wheel.rotation_euler[1] = 20.0
     wheel.keyframe_insert("rotation_euler", frame=11)
-    _linear(wheel)
+    scenes.make_linear(wheel)
     scenes.look_along_y((0, -4, 2.0))
     scenes.add_sun()
     return scenes.save(path)

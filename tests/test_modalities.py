@@ -37,12 +37,7 @@ def animated_scene(path):
     truck.rotation_euler[2] = 0.5  # 0.05 rad per frame
     truck.keyframe_insert("location", frame=11)
     truck.keyframe_insert("rotation_euler", frame=11)
-    from bpy_extras import anim_utils
-
-    ad = truck.animation_data
-    for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
-        for key in fc.keyframe_points:
-            key.interpolation = "LINEAR"
+    scenes.make_linear(truck)
     scenes.add_sun()
     scenes.look_along_y((0, -12, 3))
     return scenes.save(path)
