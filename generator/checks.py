@@ -4,6 +4,7 @@ ValueErrors that name the argument."""
 from __future__ import annotations
 
 import math
+import numbers
 
 
 def check_number(name: str, value, low=None, high=None, low_open: bool = False) -> float:
@@ -22,3 +23,10 @@ def check_number(name: str, value, low=None, high=None, low_open: bool = False) 
     if high is not None and v > high:
         raise ValueError(f"{name} must be <= {high}, got {value!r}")
     return v
+
+
+def check_seed(name: str, value) -> int:
+    """``value`` as an int, refusing booleans, non-integers (floats included) and negatives."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)

@@ -16,7 +16,7 @@ from .blender.extract import assign_pass_indices, dynamic_matrices, extract_part
 from .blender.objects import SceneError, check_names, filtered_parts, object_table  # noqa: F401 (SceneError is public)
 from .blender.render import RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
-from .checks import check_number
+from .checks import check_number, check_seed
 from .geometry import camera as cam_model
 from .geometry.collision import position_is_free, segment_is_free
 from .geometry.observability import default_viewpoints, observable_mask
@@ -93,9 +93,7 @@ class Simulator(CameraMoves, PaperAPI):
         self.segmentation_sensitivity = check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
         self.max_pcl_depth = check_number("max_pcl_depth", max_pcl_depth, low=0, low_open=True)
         self.collision_radius = check_number("collision_radius", collision_radius, low=0)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-        self.seed = int(seed)
+        self.seed = check_seed("seed", seed)
         self.blend_file = Path(blend_file)
         self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
         self.filter_object_names = check_names("filter_object_names", filter_object_names)

@@ -236,7 +236,8 @@ def test_env_and_raycam_modules_do_not_import_blender():
 def test_bad_arguments_name_the_argument(tmp_path):
     for kw, words in ((dict(seeds=[0], scene_preset="huge"), "scene_preset"), (dict(), "no scenes"),
                       (dict(seeds=[0], resolution=(0, 3)), "resolution"), (dict(seeds=[0], action_space="x"), "action_space"),
-                      (dict(seeds=5), "lists"), (dict(seeds=[0], step=-1), "step"), (dict(seeds=[0], max_steps=0), "max_steps"),
+                      (dict(seeds=5), "lists"), (dict(seeds=[0, -1]), r"seeds\[1\] must be a non-negative"),
+                      (dict(seeds=[0], step=-1), "step"), (dict(seeds=[0], max_steps=0), "max_steps"),
                       (dict(blend_files=[tmp_path / "missing.blend"]), "missing.blend")):
         with pytest.raises((ValueError, FileNotFoundError), match=words):
             ExplorationEnv(**kw)

@@ -248,6 +248,8 @@ def test_scene_without_camera_or_meshes(tmp_path):
         ({"segmentation_sensitivity": 1.5}, "segmentation_sensitivity"),
         ({"max_pcl_depth": 0}, "max_pcl_depth"),
         ({"seed": -1}, "seed"),
+        ({"seed": True}, "seed must be a non-negative integer"),
+        ({"seed": 2.0}, "seed must be a non-negative integer"),
         ({"collision_radius": -0.1}, "collision_radius"),
     ],
 )

@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..checks import check_number
+from ..checks import check_number, check_seed
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
@@ -287,10 +287,8 @@ def _sources(seeds, blend_files) -> list[tuple[str, object]]:
     if isinstance(seeds, (int, np.integer)) or isinstance(blend_files, (str, os.PathLike)):
         raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend'])")
     out: list[tuple[str, object]] = []
-    for s in seeds:
-        if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
-            raise ValueError(f"seeds must be non-negative integers, got {s!r}")
-        out.append(("seed", int(s)))
+    for i, s in enumerate(seeds):
+        out.append(("seed", check_seed(f"seeds[{i}]", s)))
     for p in blend_files:
         if not Path(p).is_file():
             raise FileNotFoundError(f"blend_files: {p} is not a file; pass paths of existing .blend files")

@@ -11,6 +11,8 @@ import hashlib
 
 import numpy as np
 
+from ..checks import check_seed
+
 
 def stable_key(name: str | int) -> int:
     """A 32-bit integer from a string (sha256) or an int; identical across processes."""
@@ -21,7 +23,6 @@ def stable_key(name: str | int) -> int:
 
 def stream(seed: int, *names: str | int) -> np.random.Generator:
     """The random stream of subsystem ``names`` for ``seed`` (a non-negative integer)."""
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    seed = check_seed("seed", seed)
     key = tuple(stable_key(n) for n in names)
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed), spawn_key=key)))
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))

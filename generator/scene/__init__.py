@@ -12,6 +12,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..checks import check_seed
 from .site import LAYOUTS, PRESETS, SiteParams, SitePlan, plan_site, site_params  # noqa: F401
 from .taxonomy import CLASS_ID, CLASSES  # noqa: F401
 
@@ -33,8 +34,7 @@ def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", pre
     from ..blender.build import build_in_blender
     from .site_map import draw_map
 
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    seed = check_seed("seed", seed)
     params = site_params(preset, **overrides)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
