@@ -25,7 +25,7 @@ from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
 from .geometry.raycam import GeometricRender, labels_of_parts
 from .geometry.raycast import SceneGeometry
 from .geometry.seeding import stream
-from .geometry.spawn import sample_spawn_points
+from .geometry.spawn import respawn_pose, sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
@@ -195,11 +195,7 @@ class Simulator(CameraMoves, PaperAPI):
         """The point set as stored in exports: ``local`` (N, 3) metres (world for static
         points, object frame for dynamic ones), ``labels``, ``instance`` (N,) int32,
         ``dynamic_object`` (N,) int32 index into ``dynamic_objects`` (-1: static)."""
-        dyn_index = np.full(len(self._parts), -1, dtype=np.int32)
-        for k, i in enumerate(i for i, p in enumerate(self._parts) if p.dynamic):
-            dyn_index[i] = k
-        return {"local": self._points.local.copy(), "labels": self._points.labels.copy(),
-                "instance": self._points.part.copy(), "dynamic_object": dyn_index[self._points.part]}
+        return self._points.table()
 
     def scene_parts(self) -> list[MeshPart]:
         """Copies of the scene's rigid parts (static in world coordinates, dynamic in their
@@ -210,9 +206,7 @@ class Simulator(CameraMoves, PaperAPI):
         """The surface points as the visibility rules need them: ``local`` (N, 3) and
         ``local_normals`` (N, 3) (outward unit normals on closed parts, zero elsewhere) in
         the part's frame, ``part`` (N,) int32 index into ``object_names``, ``labels`` (N,)."""
-        pts = self._points
-        return {"local": pts.local.copy(), "local_normals": pts.local_normals.copy(), "part": pts.part.copy(),
-                "labels": np.array(pts.labels)}
+        return self._points.sample()
 
     @property
     def frame_range(self) -> tuple[int, int]:
@@ -326,14 +320,8 @@ class Simulator(CameraMoves, PaperAPI):
         if self.spawn_points.shape[0] == 1 and np.allclose(self.spawn_points[0], self._initial_pose[:3, 3]):
             self.set_world_from_camera(self._initial_pose, check_collisions=False)
             return self.get_world_from_camera()
-        forward = self._world_from_camera[:3, 2]
-        pitch = math.asin(float(np.clip(forward[2], -0.999, 0.999)))
-        for _ in range(100):
-            p = self.spawn_points[self._respawn_rng.integers(len(self.spawn_points))]
-            yaw = self._respawn_rng.uniform(0.0, 2 * math.pi)
-            if self.is_free(p):
-                break
-        self.set_world_from_camera(cam_model.heading_pose(p, yaw, pitch), check_collisions=False)
+        pose = respawn_pose(self.spawn_points, self._world_from_camera, self._respawn_rng, self.is_free)
+        self.set_world_from_camera(pose, check_collisions=False)
         return self.get_world_from_camera()
 
     # ---- time ----------------------------------------------------------------------------

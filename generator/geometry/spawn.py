@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 
+from .camera import heading_pose
 from .parts import MeshPart
 from .raycast import SceneGeometry
 
@@ -46,3 +50,17 @@ def sample_spawn_points(
     if len(points) == 0:
         raise SpawnVolumeError(f"{volume.name!r} contains no free space for a camera of radius {radius} m")
     return points
+
+
+def respawn_pose(spawn_points: np.ndarray, current_pose: np.ndarray, rng: np.random.Generator,
+                 is_free: Callable[[np.ndarray], bool], tries: int = 100) -> np.ndarray:
+    """A pose at a random spawn point (the first of ``tries`` draws that ``is_free``, else the
+    last draw) with a random heading, the pitch of ``current_pose`` kept and no roll."""
+    forward = current_pose[:3, 2]
+    pitch = math.asin(float(np.clip(forward[2], -0.999, 0.999)))
+    for _ in range(tries):
+        p = spawn_points[rng.integers(len(spawn_points))]
+        yaw = rng.uniform(0.0, 2 * math.pi)
+        if is_free(p):
+            break
+    return heading_pose(p, yaw, pitch)

@@ -74,6 +74,19 @@ class SurfacePoints:
             mask[a:b] = True
         return mask
 
+    def table(self) -> dict:
+        """Copies of ``local``, ``labels``, ``part`` (as ``instance``) and ``dynamic_object``
+        (N,) int32: the point's index among the dynamic parts in part order (-1: static)."""
+        dyn_index = np.full(len(self.ranges), -1, dtype=np.int32)
+        dyn_index[self.dynamic_parts] = np.arange(len(self.dynamic_parts), dtype=np.int32)
+        return {"local": self.local.copy(), "labels": self.labels.copy(), "instance": self.part.copy(),
+                "dynamic_object": dyn_index[self.part]}
+
+    def sample(self) -> dict:
+        """Copies of ``local``, ``local_normals``, ``part`` and ``labels`` (writable)."""
+        return {"local": self.local.copy(), "local_normals": self.local_normals.copy(), "part": self.part.copy(),
+                "labels": np.array(self.labels)}
+
     def update(self, parts: list[MeshPart]) -> None:
         """Recompute world positions and normals of dynamic points from the parts' matrices.
 
