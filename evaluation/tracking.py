@@ -52,8 +52,9 @@ def read_tracks_gt(path: Path) -> tuple[dict, tuple[int, int]]:
 
 def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.ndarray, str]:
     """Predicted ``tracks`` (Q, T, 2) float64 and ``occluded`` (Q, T) bool from an NPZ file
-    or a dict, checked against the ground truth's Q queries and T frames. Positions of
-    points predicted occluded are ignored (set to 0)."""
+    or a dict, checked against the ground truth's Q queries and T frames. Points predicted
+    occluded keep their positions (TAP-Vid scores <delta on every pair visible in the ground
+    truth, whatever the predicted flag); a non-finite one becomes inf, never within delta."""
     source = "arrays"
     if not isinstance(pred, dict):
         source = str(pred)
@@ -85,7 +86,8 @@ def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.nd
     if visible.size and np.abs(visible).max() > MAX_PIXELS:
         raise InputError(f"{source}: a visible track position is {np.abs(visible).max():.3g} pixels from the origin "
                          f"(limit {MAX_PIXELS:.0e}); positions are (x, y) pixels of the stored frames")
-    tracks = np.where(occluded[..., None], 0.0, tracks.astype(np.float64))
+    tracks = tracks.astype(np.float64)
+    tracks[~np.isfinite(tracks)] = np.inf
     return tracks, occluded, source
 
 

@@ -288,6 +288,14 @@ def test_tracks_cli_on_the_real_subset(seed_folder, tmp_path):
     assert r.returncode == 0, r.stderr
     m = json.loads((tmp_path / "t.json").read_text())["metrics"]
     assert m["occlusion_accuracy"] == m["average_jaccard"] == m["average_pts_within"] == 1.0
+    # exact positions all flagged occluded (NaN where the GT point is hidden): <delta is
+    # TAP-Vid's, whatever the predicted flag, so still 1; no true positive for the Jaccard
+    hidden_nan = np.where(tv["occluded"][..., None], np.nan, tv["tracks"])
+    np.savez(tmp_path / "flagged.npz", tracks=hidden_nan, occluded=np.ones_like(tv["occluded"]))
+    r = cli("tracks", "--gt", seed_folder / "orbit", "--pred", tmp_path / "flagged.npz", "--json", tmp_path / "f.json")
+    assert r.returncode == 0 and "Warning" not in r.stderr, r.stderr
+    m = json.loads((tmp_path / "f.json").read_text())["metrics"]
+    assert m["average_pts_within"] == 1.0 and m["average_jaccard"] == 0.0 and m["occlusion_accuracy"] < 1.0
     np.savez(tmp_path / "short.npz", tracks=tv["tracks"][:, :2], occluded=tv["occluded"][:, :2])
     r = cli("tracks", "--gt", seed_folder / "orbit", "--pred", tmp_path / "short.npz", "--json", tmp_path / "bad.json")
     assert r.returncode == 2 and "expected" in r.stderr and len(r.stderr.strip().splitlines()) == 1
