@@ -3,7 +3,6 @@ or on arrays (for a training loop)."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -117,13 +116,11 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
             go = voxel_downsample(gt_cloud.points, gt_cloud.observable.astype(np.int64), voxel)[1].astype(bool)
         pred_cloud, gt_cloud = Cloud(p, pl, pred_cloud.source), Cloud(g, gl, gt_cloud.source, observable=go)
     labelled = pred_cloud.labels is not None and gt_cloud.labels is not None
-    t0 = time.perf_counter()
     nn = Neighbours.compute(pred_cloud.points, gt_cloud.points)
     metrics = reconstruction_metrics(pred_cloud.points, gt_cloud.points, pred_cloud.labels if labelled else None,
                                      gt_cloud.labels if labelled else None, tau, tuple(sweep), names, neighbours=nn)
     metrics["observable"] = observable_metrics(metrics, nn, gt_cloud.observable, pred_cloud.labels if labelled else None,
                                                gt_cloud.labels if labelled else None, tau, names)
-    seconds = time.perf_counter() - t0
     results = {
         "task": "reconstruction",
         "parameters": {"pred": pred_cloud.source, "gt": gt_cloud.source, "tau": tau, "sweep": list(sweep),
@@ -136,7 +133,6 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
         "labels": names,
         "metrics": metrics,
         "versions": versions(),
-        "seconds": seconds,
     }
     match = match_categories(pred_cloud.labels, gt_cloud.labels, nn.d_gp, nn.i_gp, tau)
     return results, {"pred": pred_cloud, "gt": gt_cloud, "names": names, "match": match}
@@ -223,10 +219,8 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
     clamped = 0
     if poses.frames is not None:
         clamped = int(np.count_nonzero((poses.frames < scene.frames[0]) | (poses.frames > scene.frames[-1])))
-    t0 = time.perf_counter()
     scorer = CoverageScorer(scene)
     curve, curve_obs, observed = scorer.curves(poses, progress)
-    seconds = time.perf_counter() - t0
     return {
         "task": "coverage",
         "parameters": {"gt": str(folder), "trajectory": poses.source, "frames": frames,
@@ -245,7 +239,7 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
                         "final_coverage": float(curve_obs[-1])}),
         "units": "coverage: share of ground-truth surface points observed at least once (0..1); "
                  "AUC over an x-axis normalised to [0, 1] across all poses",
-        "versions": versions(), "seconds": seconds, "poses_per_second": len(curve) / seconds if seconds else None,
+        "versions": versions(),
     }
 
 

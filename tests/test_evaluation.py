@@ -185,6 +185,13 @@ def test_cli_writes_json_and_figure9_ply(seed_folder, tmp_path):
             "--json", tmp_path / "c.json", "--plot", tmp_path / "c.png")
     assert r.returncode == 0, r.stderr
     assert json.loads((tmp_path / "c.json").read_text())["num_poses"] == 3 and (tmp_path / "c.png").stat().st_size > 0
+    # same inputs, same bytes (no wall-clock values in the results)
+    assert cli("reconstruction", "--gt", seed_folder, "--pred", tmp_path / "pred.txt", "--json", tmp_path / "r2.json",
+               "--crop").returncode == 0
+    assert cli("coverage", "--gt", seed_folder, "--trajectory", seed_folder / "orbit" / "trajectory.npz",
+               "--json", tmp_path / "c2.json").returncode == 0
+    for a, b in (("r.json", "r2.json"), ("c.json", "c2.json")):
+        assert (tmp_path / a).read_bytes() == (tmp_path / b).read_bytes(), a
 
 
 def _bad_inputs(folder, tmp):
