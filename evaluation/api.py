@@ -83,6 +83,8 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
     versions); context holds the arrays used (for the coloured PLY)."""
     if not (np.isfinite(tau) and tau > 0):
         raise InputError(f"tau must be a positive number of metres, got {tau}")
+    if crop_margin is not None and not (np.isfinite(crop_margin) and crop_margin >= 0):
+        raise InputError(f"crop_margin must be a non-negative number of metres, got {crop_margin}")
     if voxel is not None and not (np.isfinite(voxel) and voxel > 0):
         raise InputError(f"voxel must be a positive number of metres, got {voxel}")
     if isinstance(gt, Cloud):

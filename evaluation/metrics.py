@@ -17,6 +17,8 @@ import numpy as np
 
 from generator.geometry.voxels import majority_labels
 
+from .inputs import Cloud, InputError
+
 
 DEFAULT_TAU = 0.1
 DEFAULT_SWEEP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
@@ -161,10 +163,12 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
     the paper's one-direction Chamfer-L1 figures (Manhattan norm). ``neighbours``: the
     nearest neighbours of these two clouds if already computed.
     """
-    pred = np.asarray(pred, np.float64)
-    gt = np.asarray(gt, np.float64)
+    pred_cloud, gt_cloud = Cloud(pred, pred_labels, "pred"), Cloud(gt, gt_labels, "gt")  # checked: one-line errors
+    pred, gt, pred_labels, gt_labels = pred_cloud.points, gt_cloud.points, pred_cloud.labels, gt_cloud.labels
+    if not (np.isfinite(tau) and tau > 0):
+        raise InputError(f"tau must be a positive number of metres, got {tau}")
     if len(pred) == 0 or len(gt) == 0:
-        raise ValueError("both clouds need at least one point")
+        raise InputError("both clouds need at least one point")
     nn = neighbours if neighbours is not None else Neighbours.compute(pred, gt)
     d_pg, i_pg, d_gp, i_gp = nn.d_pg, nn.i_pg, nn.d_gp, nn.i_gp
     out: dict = {

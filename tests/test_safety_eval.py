@@ -364,6 +364,16 @@ def test_the_api_refuses_what_the_cli_refuses(seed_folder):
         Cloud(np.array([[0, 0, np.nan]]), None, "mine")
     with pytest.raises(InputError, match="labels must be integers"):
         Cloud(np.zeros((2, 3)), np.array([0.5, 1.0]), "mine")
+    from evaluation import reconstruction_metrics, score_reconstruction
+
+    three = np.eye(3)
+    for kwargs, words in ((dict(pred_labels=np.zeros(3), gt_labels=np.zeros(3, int)), "pred: labels must be integers"),
+                          (dict(pred_labels=np.zeros(2, int), gt_labels=np.zeros(3, int)), "pred: 2 labels for 3 points"),
+                          (dict(gt=np.array([[0, 0, np.nan]])), "gt: 1 points have NaN"), (dict(tau=-1.0), "tau")):
+        with pytest.raises(InputError, match=words):
+            reconstruction_metrics(**{"pred": three, "gt": three} | kwargs)
+    with pytest.raises(InputError, match="crop_margin must be a non-negative"):
+        score_reconstruction(seed_folder / "ground_truth" / "points.ply", seed_folder, crop=True, crop_margin=-3.0)
     from evaluation import score_tracks
 
     with pytest.raises(InputError, match="needs arrays 'tracks'"):
