@@ -51,10 +51,12 @@ def load_gt_cloud(path: str | Path, include_dynamic: bool = True) -> tuple[Cloud
         path = _seed_folder_gt(path) / "points.ply"
     elif not path.exists():
         raise InputError(f"{path}: no such file or folder")
-    cloud = read_cloud(path)
+    # a PLY names its labels in its header; other files may hold class names, read with the table beside them
+    near = None if path.suffix.lower() == ".ply" else _label_table_near(path)
+    cloud = read_cloud(path, label_names=near)
     if not include_dynamic and cloud.dynamic is not None:
         cloud = cloud.subset(~cloud.dynamic)
-    return cloud, cloud.names or _label_table_near(path)
+    return cloud, cloud.names or near or _label_table_near(path)
 
 
 def _label_table_near(path: Path) -> list[str]:

@@ -241,7 +241,8 @@ def _all_numeric(values: np.ndarray) -> bool:
 
 def _names_to_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.ndarray:
     if names is None:
-        raise InputError(f"{path}: labels are class names but no label table is known; pass --gt with labels")
+        raise InputError(f"{path}: labels are class names but no label table is known; give integer ids, or score "
+                         "against a ground truth whose labels.json names them")
     index = {n.lower(): i for i, n in enumerate(names)}
     out = np.empty(len(labels), np.int64)
     for value in np.unique(labels):

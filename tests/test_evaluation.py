@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import ROOT
-from evaluation import Cloud, reconstruction_metrics, score_coverage, score_reconstruction, voxel_downsample
+from evaluation import Cloud, load_gt_cloud, reconstruction_metrics, score_coverage, score_reconstruction, voxel_downsample
 from evaluation.coverage import coverage_auc
 from exporters.ply import read_ply, write_ply
 
@@ -259,6 +259,23 @@ def test_coverage_max_depth_override(seed_folder):
 
 
 # ---- point tracks (TAP-Vid conventions) -------------------------------------------------------
+
+def test_text_ground_truth_with_class_names(tmp_path):
+    """A third-party GT cloud in text with class names: read with labels.json beside it
+    (a custom table), else with the generator's taxonomy (the documented fallback)."""
+    rows = "0 0 0 Tower\n1 0 0 Fence\n0 1 0 Tower\n"
+    (tmp_path / "custom").mkdir()
+    (tmp_path / "custom" / "gt.xyz").write_text(rows)
+    (tmp_path / "custom" / "labels.json").write_text(json.dumps(["Fence", "Tower"]))
+    pred = Cloud(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), np.array([1, 0, 0]), "pred")
+    results, _ = score_reconstruction(pred, tmp_path / "custom" / "gt.xyz")
+    assert results["labels"] == ["Fence", "Tower"]
+    assert results["metrics"]["semantic"]["semantic_chamfer_gt_to_pred"] == pytest.approx(2 / 3)
+    (tmp_path / "taxonomy").mkdir()
+    (tmp_path / "taxonomy" / "gt.txt").write_text("0 0 0 Building\n1 0 0 ground\n")
+    cloud, names = load_gt_cloud(tmp_path / "taxonomy" / "gt.txt")
+    assert names[:2] == ["Ground", "Building"] and cloud.labels.tolist() == [1, 0]
+
 
 def test_tapvid_metrics_by_hand():
     from evaluation import tapvid_metrics
