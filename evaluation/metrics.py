@@ -234,13 +234,14 @@ def _semantic(pred_labels, gt_labels, d_pg, i_pg, d_gp, i_gp, tau, class_names) 
 def match_categories(pred_labels: np.ndarray | None, gt_labels: np.ndarray | None, d_gp: np.ndarray,
                      i_gp: np.ndarray, tau: float) -> np.ndarray:
     """Per GT point, as in the paper's figure 9: 0 matched (a prediction within tau with the
-    same label, or any within tau when unlabelled), 1 wrong label, 2 unmatched."""
+    same label, or any within tau when unlabelled), 1 wrong label, 2 unmatched. A GT point
+    labelled -1 is never matched (as in Semantic Chamfer: the share of 0 is GT -> pred's)."""
     cat = np.full(len(d_gp), 2, np.int8)
     close = d_gp < tau
     if pred_labels is None or gt_labels is None:
         cat[close] = 0
         return cat
-    same = pred_labels[i_gp] == gt_labels
+    same = (pred_labels[i_gp] == gt_labels) & (gt_labels >= 0)
     cat[close & same] = 0
     cat[close & ~same] = 1
     return cat

@@ -71,6 +71,18 @@ def test_label_swap_and_missing_class_by_hand():
     assert s["classes_missing_from_pred"] == ["d"]
 
 
+def test_figure9_blue_share_is_semantic_chamfer_with_unlabelled_points():
+    from evaluation.metrics import Neighbours, match_categories
+
+    pts = np.array([[0, 0, 0], [5, 0, 0], [10, 0, 0.0]])
+    labels = np.array([-1, 0, 1])  # one unlabelled GT point, predicted unlabelled too
+    m = reconstruction_metrics(pts, pts, labels, labels, class_names=["a", "b"])
+    nn = Neighbours.compute(pts, pts)
+    cat = match_categories(labels, labels, nn.d_gp, nn.i_gp, 0.1)
+    assert cat.tolist() == [1, 0, 0]
+    assert np.mean(cat == 0) == pytest.approx(m["semantic"]["semantic_chamfer_gt_to_pred"]) == pytest.approx(2 / 3)
+
+
 def test_empty_overlap_and_duplicates():
     gt = grid()
     m = reconstruction_metrics(gt + [100.0, 0, 0], gt, np.zeros(400, int), np.zeros(400, int), class_names=["x"])
