@@ -49,10 +49,9 @@ class Poses:
 
 
 def coverage_auc(coverage: np.ndarray) -> float:
-    """Trapezoid of the coverage curve over x in [0, 1] (a single pose: its coverage)."""
+    """Trapezoid of the coverage curve over x in [0, 1] (a single pose: 0, as the paper's
+    ``np.trapz(coverages, np.linspace(0, 1, len(coverages)))``)."""
     c = np.asarray(coverage, np.float64)
-    if len(c) == 1:
-        return float(c[0])
     return float(np.trapezoid(c, np.linspace(0.0, 1.0, len(c))))
 
 

@@ -99,7 +99,7 @@ class CoverageSink:
 
     def close(self) -> None:
         cov = self.coverage
-        auc = float(np.trapezoid(cov, np.linspace(0, 1, len(cov)))) if len(cov) > 1 else (cov[0] if cov else 0.0)
+        auc = float(np.trapezoid(cov, np.linspace(0, 1, len(cov))))  # one frame: 0, as the paper's np.trapz
         self.path.write_text(json.dumps({
             "coverage": cov, "units": "share of surface points observed at least once, after each frame (0..1)",
             "auc": auc}))

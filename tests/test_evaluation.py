@@ -272,6 +272,13 @@ def test_coverage_max_depth_override(seed_folder):
 
 # ---- point tracks (TAP-Vid conventions) -------------------------------------------------------
 
+def test_coverage_auc_is_the_papers_trapezoid():
+    # the paper: np.trapz(coverages, np.linspace(0, 1, len(coverages))); one pose has no width
+    assert coverage_auc([0.4]) == 0.0
+    assert coverage_auc([0.0, 1.0]) == 0.5
+    assert coverage_auc([0.2, 0.4, 1.0]) == pytest.approx((0.2 + 0.4) / 4 + (0.4 + 1.0) / 4)
+
+
 def test_text_ground_truth_with_class_names(tmp_path):
     """A third-party GT cloud in text with class names: read with labels.json beside it
     (a custom table), else with the generator's taxonomy (the documented fallback)."""
