@@ -29,7 +29,7 @@ class RawPasses:
     object_index: np.ndarray | None  # (H, W) int32 pass index at the pixel centre, 0 = none
     crypto_ids: np.ndarray | None  # (R, H, W) uint32 Cryptomatte hashes, best rank first
     crypto_coverage: np.ndarray | None  # (R, H, W) float32 coverage of each rank
-    crypto_manifest: dict[str, int] = field(default_factory=dict)  # object name -> hash
+    crypto_manifest: dict[str, int] = field(default_factory=dict)  # object name -> its pixel id (uint32 bits)
     rgb_display: np.ndarray | None = None  # (H, W, 3) float32 in [0, 1], view transform applied
 
 
@@ -83,6 +83,15 @@ class RenderOutput:
         return (self.rgb, self.depth, self.seg)[index]
 
 
+def cryptomatte_pixel_id(name_hash: int) -> int:
+    """The uint32 bits a Cryptomatte pixel holds for an object whose manifest hash (32-bit
+    murmur3 of its name) is ``name_hash``: Blender stores the hash as a float32 with the
+    exponent clamped to [1, 254] (no zero/denormal, inf or NaN), so about 2 names in 256
+    have pixel ids that differ from their manifest hash in the exponent bits."""
+    exponent = min(max((name_hash >> 23) & 0xFF, 1), 254)
+    return (name_hash & 0x807FFFFF) | (exponent << 23)
+
+
 def read_blender_exr(path: str | Path) -> RawPasses:
     """Read the multilayer EXR that Blender wrote for a render (all parts)."""
     import OpenEXR
@@ -101,7 +110,7 @@ def read_blender_exr(path: str | Path) -> RawPasses:
                 if key.startswith("cryptomatte/") and key.endswith("/name") and "object" in str(value).lower():
                     prefix = key[: -len("name")]
                     raw = part.header.get(prefix + "manifest", "{}")
-                    manifest.update({n: int(h, 16) for n, h in json.loads(raw).items()})
+                    manifest.update({n: cryptomatte_pixel_id(int(h, 16)) for n, h in json.loads(raw).items()})
 
     def find(suffix: str):
         hits = [k for k in channels if k.endswith(suffix)]

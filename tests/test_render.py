@@ -157,6 +157,32 @@ def test_segmentation_sensitivity_masks_thin_pole(plane_blend):
     assert (soft == board).sum() > 0.8 * (hard == board).sum()  # large surfaces keep theirs
 
 
+def test_cryptomatte_pixel_ids_clamp_the_exponent():
+    from generator.passes import cryptomatte_pixel_id
+
+    assert cryptomatte_pixel_id(0x8018FECD) == 0x8098FECD  # exponent 0 -> 1 (no denormal)
+    assert cryptomatte_pixel_id(0x7FC00001) == 0x7F400001  # exponent 255 -> 254 (no NaN or inf)
+    assert cryptomatte_pixel_id(0x3F80ABCD) == 0x3F80ABCD  # every other hash is its own id
+
+
+def test_sensitivity_keeps_the_labels_of_every_object_name(tmp_path):
+    """murmur3("Crate.070") has a float exponent of 0, which Blender's Cryptomatte pixels
+    clamp: with the default sensitivity (0.1) its pixels used to lose their label."""
+    scenes.new_scene(64, 48)
+    scenes.add_plane("Ground", (100, 100), (0, 0, 0))
+    scenes.add_box("Crate.001", (2, 2, 2), (-2, -5, 1))
+    scenes.add_box("Crate.070", (2, 2, 2), (2, -5, 1))
+    scenes.add_sun()
+    scenes.add_camera((0, -15, 3), (math.radians(80), 0, 0))
+    sim = Simulator(scenes.save(tmp_path / "crates.blend"), render_preset="preview")
+    assert sim.segmentation_sensitivity == 0.1
+    out = sim.render()
+    for name in ("Crate.001", "Crate.070"):
+        pixels = out.instance == sim.object_names.index(name)
+        assert pixels.sum() > 100, name
+        assert np.mean(out.seg[pixels] == sim.labels.index("Crate")) > 0.9, name
+
+
 def test_frame_exr_round_trip_and_other_readers(rendered, tmp_path):
     sim, out = rendered
     path = write_frame_exr(tmp_path / "f.exr", out.rgb, out.depth, out.seg, out.instance, compression="zip")
