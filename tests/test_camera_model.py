@@ -12,15 +12,21 @@ from generator.blender import camera as bcam
 from generator.geometry import camera as cm
 
 CASES = [
-    # width, height, sensor_fit, shift_x, shift_y
-    (640, 480, "AUTO", 0.0, 0.0),
-    (480, 640, "AUTO", 0.0, 0.0),
-    (640, 480, "HORIZONTAL", 0.0, 0.0),
-    (480, 640, "HORIZONTAL", 0.0, 0.0),
-    (640, 480, "VERTICAL", 0.0, 0.0),
-    (480, 640, "VERTICAL", 0.0, 0.0),
-    (640, 480, "AUTO", 0.12, -0.07),
-    (480, 640, "VERTICAL", -0.2, 0.15),
+    # width, height, sensor_fit, shift_x, shift_y, pixel_aspect_x, pixel_aspect_y
+    (640, 480, "AUTO", 0.0, 0.0, 1, 1),
+    (480, 640, "AUTO", 0.0, 0.0, 1, 1),
+    (640, 480, "HORIZONTAL", 0.0, 0.0, 1, 1),
+    (480, 640, "HORIZONTAL", 0.0, 0.0, 1, 1),
+    (640, 480, "VERTICAL", 0.0, 0.0, 1, 1),
+    (480, 640, "VERTICAL", 0.0, 0.0, 1, 1),
+    (640, 480, "AUTO", 0.12, -0.07, 1, 1),
+    (480, 640, "VERTICAL", -0.2, 0.15, 1, 1),
+    # non-square pixels (Blender scales the vertical sensor by pixel_aspect_y / pixel_aspect_x)
+    (640, 480, "VERTICAL", 0.0, 0.0, 1, 2),
+    (640, 480, "VERTICAL", 0.1, -0.05, 3, 2),
+    (480, 640, "AUTO", 0.1, -0.05, 1, 2),
+    (640, 480, "AUTO", -0.1, 0.05, 2, 1),
+    (640, 480, "HORIZONTAL", 0.1, 0.1, 1, 2),
 ]
 
 
@@ -29,9 +35,10 @@ def _random_points_in_view(rng, n=200):
     return np.stack([rng.uniform(-6, 6, n), rng.uniform(3, 20, n), rng.uniform(-6, 6, n)], axis=1)
 
 
-@pytest.mark.parametrize("width,height,fit,shift_x,shift_y", CASES)
-def test_projection_matches_blender(width, height, fit, shift_x, shift_y):
+@pytest.mark.parametrize("width,height,fit,shift_x,shift_y,pixel_x,pixel_y", CASES)
+def test_projection_matches_blender(width, height, fit, shift_x, shift_y, pixel_x, pixel_y):
     scenes.new_scene(width, height)
+    bpy.context.scene.render.pixel_aspect_x, bpy.context.scene.render.pixel_aspect_y = pixel_x, pixel_y
     cam = scenes.add_camera((0.3, -0.2, 0.1), (math.radians(80), math.radians(5), math.radians(-10)), lens=28)
     cam.data.sensor_fit = fit
     cam.data.sensor_width = 36

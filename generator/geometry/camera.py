@@ -78,8 +78,9 @@ def intrinsics_from_blender(
         fit, sensor_mm = "VERTICAL", sensor_height_mm
     else:
         raise ValueError(f"unknown sensor fit {sensor_fit!r}")
-    # Number of (horizontal-unit) pixels spanned by the sensor.
-    view_px = width if fit == "HORIZONTAL" else aspect * height
+    # Number of (horizontal-unit) pixels spanned by the sensor: a row is 1 / aspect of them
+    # (Blender's viewplane: ycor * winy with ycor = pixel_aspect_y / pixel_aspect_x).
+    view_px = width if fit == "HORIZONTAL" else height / aspect
     fx = lens_mm / sensor_mm * view_px
     fy = fx * aspect
     cx = width / 2.0 - shift_x * view_px
