@@ -4,8 +4,9 @@ Poses are camera-to-world in the OpenGL camera convention (x right, y up, z back
 ``transform_matrix = world_from_camera @ diag(1, -1, -1, 1)`` with our OpenCV
 world_from_camera. Intrinsics in pixels; nerfstudio's pixel convention is ours (the
 top-left pixel's centre is (0.5, 0.5)). Depth PNGs are 16-bit planar depth in units of
-``depth_unit`` metres (``depth_unit_scale_factor`` for nerfstudio, ``integer_depth_scale``
-for instant-NGP), chosen per trajectory so that 65,535 units cover the deepest surface any
+``depth_unit`` metres (``integer_depth_scale`` for instant-NGP; ``depth_unit_scale_factor``
+too, which nerfstudio's parser does not read from the file: pass it as its
+``--depth-unit-scale-factor`` option), chosen per trajectory so that 65,535 units cover the deepest surface any
 frame can see; 0 means no surface (docs/format.md).
 """
 
