@@ -183,6 +183,23 @@ def test_sensitivity_keeps_the_labels_of_every_object_name(tmp_path):
         assert np.mean(out.seg[pixels] == sim.labels.index("Crate")) > 0.9, name
 
 
+def test_a_render_border_in_the_blend_is_ignored(tmp_path):
+    """The ground truth describes the whole frame, so the colour does too: a .blend's render
+    border (cropped or not) would give an RGB of another size or black outside the border."""
+    scenes.new_scene(64, 48)
+    r = bpy.context.scene.render
+    r.use_border, r.use_crop_to_border = True, True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.25, 0.75
+    scenes.add_plane("Ground", (100, 100), (0, 0, 0))
+    scenes.add_sun()
+    scenes.add_camera((0, -15, 3), (math.radians(80), 0, 0))
+    sim = Simulator(scenes.save(tmp_path / "border.blend"), segmentation_sensitivity=0.0, render_preset="preview")
+    out = sim.render()
+    assert out.rgb.shape == (48, 64, 3) and out.depth.shape == (48, 64)
+    ground = np.isfinite(out.depth)
+    assert ground[:, :16].any() and out.rgb[:, :16][ground[:, :16]].mean() > 0.05  # lit outside the old border
+
+
 def test_frame_exr_round_trip_and_other_readers(rendered, tmp_path):
     sim, out = rendered
     path = write_frame_exr(tmp_path / "f.exr", out.rgb, out.depth, out.seg, out.instance, compression="zip")

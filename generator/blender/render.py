@@ -158,6 +158,7 @@ class Renderer:
         finished, and its exception is raised, before this returns."""
         require_gpu_context(bpy.context.scene.render.engine)
         devices.select(None)  # a file opened since the last settings renders on the CPU unless told
+        bpy.context.scene.render.use_border = False  # the ground truth and K describe the whole frame
         try:
             t0 = time.perf_counter()
             with session.quiet():
