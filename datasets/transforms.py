@@ -126,16 +126,22 @@ class _Taps:
         tx, ty = self.tx[None, :], self.ty[:, None]
         if img.ndim == 3:
             tx, ty = tx[..., None], ty[..., None]
-        value = (a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty
+        with np.errstate(invalid="ignore"):  # inf taps: replaced by the nearest value below
+            value = (a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty
         finite = np.isfinite(np.stack([a, b, c, d]))
         ok = smooth & (finite.all(axis=(0, -1)) if img.ndim == 3 else finite.all(axis=0))
         near = self.nearest(img).astype(np.float64)
         return np.where(ok[..., None] if img.ndim == 3 else ok, value, near)
 
-    def continuous(self, depth: np.ndarray | None) -> np.ndarray:
-        """(H', W') bool: the four source depths are finite and within EDGE_RATIO of each other."""
+    def continuous(self, depth: np.ndarray | None, instance: np.ndarray | None = None) -> np.ndarray:
+        """(H', W') bool: the four source depths are finite and within EDGE_RATIO of each other;
+        without depth, the four taps hold one object (``instance`` >= 0); without either,
+        nowhere (nothing tells a surface from the next, so no value is blended)."""
         if depth is None:
-            return np.ones((len(self.r0), len(self.c0)), bool)
+            if instance is None:
+                return np.zeros((len(self.r0), len(self.c0)), bool)
+            a, b, c, d = self.corners(instance)
+            return (a >= 0) & (a == b) & (a == c) & (a == d)
         taps = np.stack([v.astype(np.float64) for v in self.corners(depth)])
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.isfinite(taps).all(0) & (taps.min(0) > 0) & (taps.max(0) <= EDGE_RATIO * taps.min(0))
@@ -157,7 +163,7 @@ class Resize:
         h, w = out[keys[0]].shape[:2]
         sx, sy = self.width / w, self.height / h
         taps = _Taps(w, h, self.width, self.height)
-        smooth = taps.continuous(out.get("depth"))
+        smooth = taps.continuous(out.get("depth"), out.get("instance"))
         for key in keys:
             rule, img = MODALITIES[key].resample, out[key]
             if rule == "nearest":

@@ -109,6 +109,20 @@ def test_task_datasets(seed_folder):
     assert clouds[0]["xyz"].shape == (1000, 3) and clouds[0]["label"].shape == (1000,)
 
 
+@pytest.mark.parametrize("keys", [("flow", "depth"), ("flow", "instance"), ("flow",)])
+def test_resize_never_blends_flow_across_an_object_edge(keys):
+    """Background flow 0 (columns 0-2, 30 m, object 0) and foreground flow 40 px (columns
+    3-7, 10 m, object 1), shrunk 8 -> 6 px: every value is one of the two surfaces' (scaled),
+    whether the edge is known from depth, from instance ids, or not at all."""
+    fg = np.arange(8) >= 3
+    full = {"flow": np.zeros((4, 8, 2), np.float32), "depth": np.where(fg, 10.0, 30.0)[None].repeat(4, 0).astype(np.float32),
+            "instance": np.where(fg, 1, 0)[None].repeat(4, 0).astype(np.int32)}
+    full["flow"][:, fg, 0] = 40.0
+    out = Resize(6, 4)({k: full[k] for k in keys})
+    assert set(np.unique(out["flow"][..., 0])) <= {0.0, np.float32(40.0 * 6 / 8)}
+    assert np.any(out["flow"][..., 0] == 0) and np.any(out["flow"][..., 0] > 0)
+
+
 def test_resize_and_crop_keep_projections(seed_folder):
     scene = Scene(seed_folder)
     plain = ClipDataset(seed_folder, length=2)[0]
