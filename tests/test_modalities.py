@@ -6,6 +6,7 @@ linear RGB is the display PNG after Blender's view transform, and a modality reg
 this file alone reaches the EXR, the datasets and the contact sheet."""
 
 import json
+import math
 import os
 
 import numpy as np
@@ -328,3 +329,24 @@ def test_outputs_option_is_checked_up_front(tmp_path):
     r = run_generator(tmp_path, "--seeds", "1", "--outputs", "depth,colour")
     assert r.returncode == 2 and "unknown output colour" in r.stderr and "Traceback" not in r.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_filtered_objects_keep_depth_and_normals_and_have_no_flow(tmp_path):
+    """A filtered object is an unlabelled surface: depth and normal as any surface (render()
+    and render_outputs() agree), flow NaN (its motion is not tracked); other surfaces keep
+    their flow (0 for a still camera on a static scene)."""
+    scenes.new_scene(64, 48)
+    scenes.add_plane("Ground", (100, 100), (0, 0, 0))
+    scenes.add_box("Wall", (3, 0.2, 3), (-1, -5, 1.5))
+    scenes.add_sun()
+    scenes.add_camera((0, -15, 3), (math.radians(80), 0, 0))
+    sim = Simulator(scenes.save(tmp_path / "filtered.blend"), segmentation_sensitivity=0.0, filter_object_names=["Wall"])
+    pose = sim.get_world_from_camera()
+    out = sim.render_outputs(["depth", "label", "normal", "flow"], np.stack([pose, pose]), np.zeros((2, 0, 4, 4)), 0)
+    wall = np.isfinite(out["depth"]) & (out["label"] == -1)
+    ground = np.isfinite(out["depth"]) & (out["label"] >= 0)
+    assert wall.sum() > 100 and ground.sum() > 100
+    np.testing.assert_allclose(np.linalg.norm(out["normal"][wall], axis=-1), 1.0, atol=1e-5)
+    wall_normal = out["normal"][wall].mean(axis=0)  # the wall faces the camera: -y in the world
+    assert wall_normal[1] < -0.99
+    assert np.isnan(out["flow"][wall]).all() and np.abs(out["flow"][ground]).max() < 1e-6

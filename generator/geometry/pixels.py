@@ -6,11 +6,13 @@ camera poses of every frame and the dynamic objects' matrices at every frame (al
 front). The geometry modalities (``exporters.modalities``) are computed from it:
 
 - ``world_normals()``: (H, W, 3) float32 unit normals of the triangle hit, world frame,
-  turned toward the camera; 0 where there is no surface.
+  turned toward the camera; 0 where there is no surface. Objects in the Simulator's
+  ``filter_object_names`` are surfaces too (unlabelled: part -1, depth and normal kept).
 - ``flow_to(t)``: (H, W, 2) float32 pixels: where the surface point seen at the pixel centre,
   moving rigidly with its object (static surfaces do not move), projects in frame ``t``,
   minus the pixel centre. NaN where there is no surface, no frame ``t``, or the point is not
-  in front of camera ``t`` (planar depth <= 0). Occlusion in frame ``t`` does not matter.
+  in front of camera ``t`` (planar depth <= 0), and on filtered objects (their motion is not
+  tracked). Occlusion in frame ``t`` does not matter.
 """
 
 from __future__ import annotations
@@ -44,8 +46,13 @@ class PixelGeometry:
         self.object_matrices = np.asarray(object_matrices, np.float64)
 
     @property
+    def surface(self) -> np.ndarray:
+        """(H, W) bool: a surface is seen at the pixel centre (filtered objects included)."""
+        return np.isfinite(self.depth)
+
+    @property
     def hit(self) -> np.ndarray:
-        """(H, W) bool: a surface is seen at the pixel centre."""
+        """(H, W) bool: a simulated part is seen at the pixel centre (its motion is known)."""
         return (self.part >= 0) & np.isfinite(self.depth)
 
     @cached_property
@@ -61,7 +68,7 @@ class PixelGeometry:
         if self.normal_camera is None:
             raise ValueError("these pixel hits were cast without normals")
         n = self.normal_camera.astype(np.float64) @ self.poses[self.index][:3, :3].T
-        return np.where(self.hit[..., None], n, 0.0).astype(np.float32)
+        return np.where(self.surface[..., None], n, 0.0).astype(np.float32)
 
     def points_at(self, t: int) -> np.ndarray:
         """(H, W, 3) world positions at frame ``t`` of the surface points seen at this frame,
