@@ -247,7 +247,8 @@ class Simulator(CameraMoves, PaperAPI):
         return float(self.observed_points_mask.sum()) / n if n else 0.0
 
     # ---- point cloud ---------------------------------------------------------------------
-    def compute_point_cloud(self, update_mask: bool = True, imshow: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def compute_point_cloud(self, update_mask: bool = True, imshow: bool = False,
+                            max_depth: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All surface points at the current frame and which ones the camera sees.
 
         Returns ``(points (N, 3) float64 world metres, labels (N,) int32, visible (N,) bool)``.
@@ -255,13 +256,15 @@ class Simulator(CameraMoves, PaperAPI):
         them to edit). With ``update_mask`` the visible points are added to
         ``observed_points_mask``. With ``imshow`` the visible points are drawn in their
         ``point_cloud_colors`` into ``point_cloud_image`` ((H, W, 3) uint8; no window opens).
+        ``max_depth`` (metres, planar) replaces ``max_pcl_depth`` for this call only
+        (``math.inf``: every depth the camera renders, up to its clip end).
         """
         self._check_current()
+        limit = self.max_pcl_depth if max_depth is None else check_number("max_depth", max_depth, low=0, low_open=True)
         pts = self._points
         visible = visible_points(
             self._geometry, pts.world, pts.world_normals, pts.part, self._world_from_camera, self.K,
-            self.width, self.height, ViewLimits(self.clip_start, min(self.clip_end, self.max_pcl_depth)),
-            self.last_visibility,
+            self.width, self.height, ViewLimits(self.clip_start, min(self.clip_end, limit)), self.last_visibility,
         )
         if update_mask:
             self.observed_points_mask |= visible

@@ -226,3 +226,39 @@ def test_frame_exr_bytes_do_not_depend_on_openexr_threads(tmp_path):
         assert OpenEXR.global_thread_count() == 5
     finally:
         OpenEXR.set_global_thread_count(before)
+
+
+def test_tracks_show_every_depth_coverage_keeps_the_depth_limit(tmp_path):
+    """tracks.h5 and TAP-Vid list what the image shows at any depth; coverage counts only the
+    points within the Simulator's max_pcl_depth (the paper's depth-sensor range). Each frame's
+    visible set equals a fresh Simulator's (no cache) at the same pose."""
+    import math
+
+    import scenes
+    from generator import Simulator
+    from generator.batch.fly import fly
+    from generator.geometry.camera import look_at
+    from trajectories import Trajectory
+
+    scenes.new_scene(48, 36)
+    scenes.add_plane("Ground", (200, 200), (0, 60, 0))
+    scenes.add_box("Wall", (10, 0.3, 4), (0, 40, 2))
+    scenes.add_sun()
+    scenes.look_along_y((0, 0, 2))
+    blend = scenes.save(tmp_path / "far.blend")
+    poses = np.stack([look_at((x, 0.0, 2.0), (x, 30.0, 1.0)) for x in (0.0, 1.0, 2.0)])
+    sim = Simulator(blend, points_density=2, max_pcl_depth=10.0, render_preset="preview")
+    fly(sim, Trajectory(poses, np.arange(3) / 10.0, "test"), tmp_path / "test", seed=0, outputs=("depth",))
+    tr = read_tracks(tmp_path / "test" / "tracks.h5")
+    assert tr["depth"].max() > 30 and tr["depth"].min() < 10  # the wall at ~40 m is in the tracks
+    observed = np.zeros(len(tr["local"]), bool)
+    fresh = Simulator(blend, points_density=2, max_pcl_depth=10.0)
+    for t in range(3):
+        ids = tr["index"][tr["offsets"][t]:tr["offsets"][t + 1]]
+        observed[ids[tr["depth"][tr["offsets"][t]:tr["offsets"][t + 1]] <= 10.0]] = True
+        assert tr["coverage"][t] == observed.mean()
+        fresh.set_world_from_camera(poses[t], check_collisions=False)
+        np.testing.assert_array_equal(np.flatnonzero(fresh.compute_point_cloud(max_depth=math.inf)[2]), ids)
+    tap = tr["tapvid"]
+    far_visible = ~tap["occluded"] & (np.linalg.norm(tap["tracks_3d"] - poses[:, None, :3, 3].swapaxes(0, 1), axis=-1) > 15)
+    assert far_visible.any()  # TAP-Vid marks far points visible too

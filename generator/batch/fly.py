@@ -7,6 +7,7 @@ closes them. What each file holds is the sink's business."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,9 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, o
         sim.set_frame(1 + i)
         sim.set_world_from_camera(pose, check_collisions=False)
         r = sim.render_outputs(names, context.poses, matrices, i)
-        points, _, visible = sim.compute_point_cloud()
+        sim.compute_point_cloud()  # coverage: points seen within the Simulator's max_pcl_depth
+        # tracks and COLMAP observations: every point the image shows, at any depth
+        points, _, visible = sim.compute_point_cloud(update_mask=False, max_depth=math.inf)
         record = FrameRecord(i, float(context.timestamps[i]), pose, {n: r.outputs[n] for n in names}, points, visible,
                              sim.dynamic_object_matrices(), sim.coverage)
         for sink in sinks:
