@@ -21,8 +21,9 @@ TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--
 def run_generator(out, *args, env_extra=None, **kw) -> subprocess.CompletedProcess:
     """``python -m generator --out OUT <TINY> *args`` in a real process."""
     env = {k: v for k, v in os.environ.items() if k != "OCIO"} | (env_extra or {})
+    kw.setdefault("cwd", ROOT)
     return subprocess.run([sys.executable, "-m", "generator", "--out", str(out), *TINY, *args],
-                          capture_output=True, text=True, cwd=ROOT, env=env, **kw)
+                          capture_output=True, text=True, env=env, **kw)
 
 
 @pytest.fixture(scope="session")
@@ -30,6 +31,7 @@ def finished(tmp_path_factory):
     """(output folder, completed process) of one tiny run of seed 4, written by the real pipeline;
     shared by the tests of the exports, the evaluation and the loaders."""
     out = tmp_path_factory.mktemp("batch")
-    r = run_generator(out, "--seeds", "4", "--colmap-text")
+    # a relative --out, from a folder that is not the repository (workers run elsewhere)
+    r = run_generator(out.name, "--seeds", "4", "--colmap-text", cwd=out.parent)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     return out, r

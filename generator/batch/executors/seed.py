@@ -65,7 +65,7 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
     earlier run was removed), {"event": "start", "frames"} (frames to render) and
     {"event": "frame"} (one more frame written). ``started`` receives the worker process
     (to cancel it: kill its process group)."""
-    out, t0 = Path(job.out), time.perf_counter()
+    out, t0 = Path(job.out).absolute(), time.perf_counter()  # the worker runs in the repository's folder
     try:
         folder, note = folders.start_partial(out, job.seed)
     except OSError as exc:
