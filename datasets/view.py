@@ -16,6 +16,7 @@ import os
 import sys
 from pathlib import Path
 
+from exporters.manifest import seed_folder_containing
 from generator.cli_args import OneLineParser, int_at_least
 
 from .viewer.common import MAX_POINTS
@@ -45,9 +46,12 @@ def check_out(out: Path, seed: Path) -> None:
         raise ViewError(f"--out {out}: name a .rrd file")
     if out.is_dir():
         raise ViewError(f"--out {out}: is a folder; name a .rrd file")
-    real, seed_real = Path(os.path.realpath(out)), Path(os.path.realpath(seed))
-    if seed_real == real.parent or seed_real in real.parents:
-        raise ViewError(f"--out {out}: lies inside the seed folder {seed}; write the recording elsewhere")
+    try:
+        inside = seed_folder_containing(out.parent)
+    except OSError as exc:
+        raise ViewError(f"--out {out}: cannot look at its folder ({exc.strerror}); choose another") from None
+    if inside is not None:
+        raise ViewError(f"--out {out}: lies inside the seed folder {inside}; write the recording elsewhere")
     if not out.parent.is_dir():
         raise ViewError(f"--out {out}: its folder does not exist; create it first")
     if not os.access(out.parent, os.W_OK):

@@ -102,6 +102,17 @@ def read_manifest(folder: str | Path) -> dict | None:
         return None
 
 
+def seed_folder_containing(path: str | Path) -> Path | None:
+    """The seed folder that ``path`` is or lies in (one with a manifest.json, even a damaged
+    one, or being generated), if any: what nothing but the generator may write into. An
+    unreadable folder on the way raises OSError."""
+    path = Path(os.path.realpath(path))
+    for folder in [path, *path.parents]:
+        if (folder / MANIFEST).is_file() or (folder / PARTIAL_MARKER).is_file():
+            return folder
+    return None
+
+
 def check_files(folder: str | Path, manifest: dict, hashes: bool | None = True) -> list[str]:
     """One line per file that differs from ``manifest``: missing, other size, other sha256,
     and files the manifest does not list. ``hashes``: True hashes every file; False checks

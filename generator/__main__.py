@@ -128,16 +128,6 @@ def parse_args(argv=None) -> argparse.Namespace:
     return args
 
 
-def _inside_a_seed(out: Path) -> Path | None:
-    """The complete or partial seed folder ``out`` lies in (or is), if any."""
-    from exporters.manifest import PARTIAL_MARKER, read_manifest
-
-    for folder in [out.resolve(), *out.resolve().parents]:
-        if read_manifest(folder) is not None or (folder / PARTIAL_MARKER).is_file():
-            return folder
-    return None
-
-
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["verify"]:
@@ -146,11 +136,13 @@ def main(argv=None) -> int:
         return verify(argv[1:])
     args = parse_args(argv)
     cfg = args.config
-    inside = _inside_a_seed(args.out)
-    if inside:
-        print(f"error: --out {args.out} is inside the seed folder {inside}; choose a folder outside it", file=sys.stderr)
-        return 2
+    from exporters.manifest import seed_folder_containing
+
     try:
+        inside = seed_folder_containing(args.out)
+        if inside:
+            print(f"error: --out {args.out} is inside the seed folder {inside}; choose a folder outside it", file=sys.stderr)
+            return 2
         args.out.mkdir(parents=True, exist_ok=True)
         probe = args.out / f".write-test-{os.getpid()}"
         probe.write_text("")

@@ -269,7 +269,18 @@ def test_out_inside_a_seed_folder_is_refused(tmp_path, finished):
     for out in (folder, folder / "orbit", folder / "new" / "deeper"):
         r = run(out, "--seeds", "1")
         assert r.returncode == 2 and "is inside the seed folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    # the other CLIs that write files refuse it too: the site builder and the viewer
+    # (viewing the original seed, recording into the copy)
+    for cmd in (["generator.scene", "--seed", "1", "--preset", "small", "--no-preview", "--out", str(folder / "scene2")],
+                ["datasets.view", str(finished[0] / "seed_000004"), "--out", str(folder / "view.rrd")]):
+        r = subprocess.run([sys.executable, "-m", *cmd], capture_output=True, text=True, cwd=ROOT, env=_env())
+        assert r.returncode == 2 and "inside the seed folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert _snapshot(folder) == before
+    # a seed folder whose manifest is damaged is still a seed folder
+    (tmp_path / "broken" / "seed_000002").mkdir(parents=True)
+    (tmp_path / "broken" / "seed_000002" / "manifest.json").write_text("{not json")
+    r = run(tmp_path / "broken" / "seed_000002" / "x", "--seeds", "1")
+    assert r.returncode == 2 and "is inside the seed folder" in r.stderr
 
 
 def test_scene_cli_out_naming_a_file(tmp_path):

@@ -33,6 +33,15 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if os.path.lexists(args.out) and not args.out.is_dir():
         p.error(f"--out {args.out} exists and is not a folder; name a folder")
+    from exporters.manifest import seed_folder_containing
+
+    try:
+        inside = seed_folder_containing(args.out)
+    except OSError as exc:
+        p.error(f"--out {args.out}: cannot look at it ({exc.strerror}); choose another folder")
+    if inside is not None:
+        p.error(f"--out {args.out} is inside the seed folder {inside}, which only python -m generator writes; "
+                "choose a folder outside it")
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}
