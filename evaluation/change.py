@@ -122,15 +122,24 @@ def read_change_prediction(path: Path) -> dict:
             v = read_ply(path).vertex
             data = {"xyz": np.stack([v[c] for c in "xyz"], axis=1), "change": v["change"]}
         else:
-            with np.load(path, allow_pickle=False) as z:
+            z = np.load(path, allow_pickle=False)
+            if not hasattr(z, "files"):
+                raise InputError(f"--pred {path}: holds one array; give an NPZ with masks (T, H, W), or xyz and change")
+            with z:
                 data = {k: z[k] for k in z.files if k in ("xyz", "change", "masks")}
     except KeyError as exc:
         raise InputError(f"--pred {path}: no {exc} property; a change cloud has x, y, z and change "
                          "(1 added, 2 removed)") from None
     except (OSError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
         raise InputError(f"--pred {path}: not a readable NPZ or PLY ({exc.__class__.__name__})") from None
     if "masks" in data:
-        return {"masks": np.asarray(data["masks"]).astype(bool)}
+        masks = np.asarray(data["masks"])
+        if masks.dtype.kind != "b" and not (masks.dtype.kind in "iuf" and np.isin(masks, (0, 1)).all()):
+            raise InputError(f"--pred {path}: masks must be booleans (or 0/1), got {masks.dtype} values such as "
+                             f"{masks.flat[np.flatnonzero(~np.isin(masks, (0, 1)))[0]]!r}; threshold probabilities first")
+        return {"masks": masks.astype(bool)}
     if "xyz" not in data or "change" not in data:
         raise InputError(f"--pred {path}: needs xyz (N, 3) and change (N,) (1 added, 2 removed), or masks (T, H, W)")
     xyz, change = np.asarray(data["xyz"], np.float64), np.asarray(data["change"])

@@ -195,6 +195,7 @@ def test_reconstruction_points_lie_on_the_scene(tmp_path):
     (["exploration", "--steps", "0", "--out", "x"], "integer >= 1"),
     (["reconstruction", "--voxel", "-1", "--out", "x"], "positive number of metres"),
     (["exploration", "--seeds", "1", "1", "--out", "x"], "lists a seed twice"),
+    (["reconstruction", "--gt-density", "1e12", "--out", "x"], "the limit is 25,000,000"),
 ])
 def test_bad_arguments(args, message):
     r = baselines(*args)

@@ -246,6 +246,19 @@ def test_ground_truth_as_prediction_scores_perfectly(timeline, tmp_path):
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "stages" in r.stderr, r.stderr
 
 
+def test_change_predictions_are_checked(tmp_path):
+    from evaluation.change import read_change_prediction
+    from evaluation.inputs import InputError
+
+    np.savez(tmp_path / "probs.npz", masks=np.full((2, 4, 6), 0.3, np.float32))
+    np.savez(tmp_path / "ints.npz", masks=np.eye(4, 6, dtype=np.int8)[None])
+    np.save(tmp_path / "masks.npy", np.zeros((2, 4, 6), bool))
+    for name, words in (("probs.npz", "masks must be booleans"), ("masks.npy", "holds one array")):
+        with pytest.raises(InputError, match=words):
+            read_change_prediction(tmp_path / name)
+    assert read_change_prediction(tmp_path / "ints.npz")["masks"].sum() == 4  # 0/1 integers are booleans
+
+
 def test_hand_built_scores():
     gt = np.array([[0.0, 0, 0], [1, 0, 0], [5, 0, 0]])
     gt_code = np.array([1, 1, 2])

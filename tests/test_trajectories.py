@@ -131,6 +131,15 @@ def test_save_load_round_trip(checker, tmp_path):
         Trajectory.load(tmp_path / "junk.npz")
     with pytest.raises(TrajectoryError, match="not found"):
         Trajectory.load(tmp_path / "missing.npz")
+    # other arrays: a one-line TrajectoryError saying what a trajectory file holds
+    np.save(tmp_path / "poses.npy", traj.poses)
+    np.savez(tmp_path / "mine.npz", poses=traj.poses, timestamps=traj.timestamps)
+    np.savez(tmp_path / "list.npz", poses=traj.poses, timestamps=traj.timestamps, actions=np.array(traj.actions),
+             header=np.array("[1, 2]"))
+    for name, words in (("poses.npy", "holds one array"), ("mine.npz", "has no actions, header"),
+                        ("list.npz", "not a JSON object")):
+        with pytest.raises(TrajectoryError, match=words):
+            Trajectory.load(tmp_path / name)
 
 
 @pytest.mark.parametrize("kwargs", [{"steps": 0}, {"step": -1.0}, {"angle": 0.0}])

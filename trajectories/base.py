@@ -81,12 +81,27 @@ class Trajectory:
         path = Path(path)
         if not path.is_file():
             raise TrajectoryError(f"trajectory file not found: {path}")
+        need = ("poses", "timestamps", "actions", "header")
+        what = f"a .npz with arrays {', '.join(need)}, as Trajectory.save writes"
         try:
-            with np.load(path, allow_pickle=False) as z:
+            z = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}; give {what}") from None
+        if not hasattr(z, "files"):  # a .npy array
+            raise TrajectoryError(f"not a trajectory file: {path} holds one array; give {what}")
+        try:
+            with z:
+                missing = [k for k in need if k not in z.files]
+                if missing:
+                    raise TrajectoryError(f"not a trajectory file: {path} has no {', '.join(missing)}; give {what}")
                 header = json.loads(str(z["header"]))
                 poses, times, actions = z["poses"], z["timestamps"], [str(a) for a in z["actions"]]
-        except (OSError, ValueError, KeyError) as exc:
-            raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}") from None
+        except (OSError, ValueError) as exc:
+            if isinstance(exc, TrajectoryError):
+                raise
+            raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}; give {what}") from None
+        if not isinstance(header, dict) or not isinstance(header.get("kind"), str):
+            raise TrajectoryError(f"not a trajectory file: the header of {path} is not a JSON object with format and kind")
         if header.get("format") != FORMAT:
             raise TrajectoryError(f"unsupported trajectory format {header.get('format')!r} in {path}")
         if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(times) != len(poses):

@@ -34,7 +34,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     r.add_argument("--steps", type=int_at_least(1, "steps"), default=100, help="actions (default 100), one frame rendered before each")
     r.add_argument("--voxel", type=positive_float("a positive number of metres"), default=0.05, help="voxel size in metres (default 0.05)")
     r.add_argument("--tau", type=positive_float("a positive number of metres"), default=0.1, help="distance threshold of the metrics (default 0.1 m)")
-    r.add_argument("--gt-density", type=positive_float("a positive number of metres"), default=100.0,
+    r.add_argument("--gt-density", type=positive_float("a positive number of points per square metre"), default=100.0,
                    help="points per square metre of the ground-truth cloud (default 100, as the paper's code)")
     r.add_argument("--resolution", type=resolution, default=(640, 480), help="WxH pixels (default 640x480)")
     r.add_argument("--scene-preset", choices=sorted(PRESETS), default="medium")
@@ -42,6 +42,13 @@ def parse_args(argv=None) -> argparse.Namespace:
     args = p.parse_args(argv)
     if args.task == "exploration" and len(set(args.seeds)) != len(args.seeds):
         p.error("--seeds lists a seed twice")
+    if args.task == "reconstruction":
+        from ..batch.config import MAX_SCORING_POINTS, site_area_lower_bound
+
+        area = site_area_lower_bound(args.scene_preset)
+        if args.gt_density * area > MAX_SCORING_POINTS:
+            p.error(f"--gt-density {args.gt_density:g}: a {args.scene_preset} site has more than {area:,.0f} m^2 of "
+                    f"surface, so over {args.gt_density * area:,.0f} points; the limit is {MAX_SCORING_POINTS:,}")
     return args
 
 
