@@ -17,6 +17,7 @@ MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attribu
 MAX_SCORING_POINTS = 25_000_000  # ground-truth cloud: ~220 bytes a point at peak (measured), ~5.5 GB
 MAX_PHASES = 16  # stages of a timeline (generator.scene.timeline.MAX_STAGES)
 MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every frame
+MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may get from the densities
 
 
 @dataclass(frozen=True)
@@ -60,9 +61,15 @@ class RunConfig:
             from exporters.modalities import resolve
 
             resolve(self.outputs)  # ValueError naming an unknown output
+        twice = sorted({k for k in self.trajectories if list(self.trajectories).count(k) > 1})
+        if twice:
+            raise ValueError(f"--trajectory {twice[0]} is given twice; each kind is flown once per seed")
         area = site_area_lower_bound(self.scene_preset)
         for name, density, limit in (("points-density", self.points_density, MAX_SURFACE_POINTS),
                                      ("scoring-density", self.scoring_density, MAX_SCORING_POINTS)):
+            if density * area < MIN_POINTS:
+                raise ValueError(f"--{name} {density:g}: a {self.scene_preset} site may have only {area:,.0f} m^2 of "
+                                 f"surface, so under {MIN_POINTS} points; give at least {MIN_POINTS / area:g}")
             if density * area > limit:
                 raise ValueError(f"--{name} {density:g}: a {self.scene_preset} site has more than {area:,.0f} m^2 of "
                                  f"surface, so over {density * area:,.0f} points; the limit is {limit:,}")
