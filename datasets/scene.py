@@ -17,7 +17,7 @@ import numpy as np
 from exporters import FORMAT_VERSION, VERSION_REMEDY
 from exporters.frames import FrameReader, frame_names
 from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
-from exporters.manifest import read_manifest
+from exporters.manifest import read_manifest, stage_count, timeline_stage
 from exporters.tracks import TrackReader
 
 SUPPORTED_VERSIONS = (FORMAT_VERSION,)
@@ -200,9 +200,16 @@ class Scene:
         if not self.path.is_dir():
             raise DatasetError(f"{self.path}: no such folder")
         manifest = read_manifest(self.path)
+        stage = timeline_stage(self.path) if manifest is None else None
+        if stage is not None:
+            raise DatasetError(f"{self.path}: stage {stage[1]} of the timeline seed {stage[0]}; read it with "
+                               f"datasets.change.Timeline('{stage[0]}').sequence({stage[1]}, kind)")
         if manifest is None:
             raise DatasetError(f"{self.path}: not a complete seed folder (no readable manifest.json); "
                                "point at output/seed_NNNNNN written by python -m generator")
+        if stage_count(manifest) > 1:
+            raise DatasetError(f"{self.path}: a timeline seed of {stage_count(manifest)} stages (--phases); read it "
+                               f"with datasets.change.Timeline('{self.path}')")
         version = manifest.get("format_version")
         if version not in SUPPORTED_VERSIONS:
             raise DatasetError(f"{self.path}: format_version {version!r}; this reader reads "

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from exporters.ground_truth import GroundTruthError, read_ground_truth
-from exporters.manifest import read_manifest
+from exporters.manifest import read_manifest, stage_count, timeline_stage
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
 from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
@@ -33,9 +33,17 @@ def versions() -> dict:
 
 
 def _seed_folder_gt(folder: Path) -> Path:
-    gt = folder / "ground_truth" if (folder / "ground_truth").is_dir() or (folder / "manifest.json").exists() else folder
-    if gt != folder and read_manifest(folder) is None:
-        raise InputError(f"{folder}: incomplete seed folder (no manifest.json); rerun python -m generator for this seed")
+    stage = timeline_stage(folder)  # phase_K of a timeline seed: its manifest is one level up
+    home = stage[0] if stage else folder
+    manifest = read_manifest(home)
+    if stage is None and manifest is not None and stage_count(manifest) > 1:
+        n = stage_count(manifest)
+        raise InputError(f"{folder}: a timeline of {n} stages (--phases); score one stage: --gt {folder / 'phase_K'} "
+                         f"(K = 0 to {n - 1})")
+    gt = folder / "ground_truth" if (folder / "ground_truth").is_dir() or (home / "manifest.json").exists() else folder
+    if gt != folder and manifest is None:
+        raise InputError(f"{folder}: incomplete seed folder (no readable manifest.json); rerun python -m generator "
+                         "for this seed")
     missing = [n for n in ("points.ply", "mesh.ply", "scene.h5") if not (gt / n).is_file()]
     if missing:
         raise InputError(f"{gt}: incomplete ground truth, missing {', '.join(missing)}; rerun python -m generator for this seed")

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from pathlib import Path, PurePosixPath
 
 MANIFEST = "manifest.json"
@@ -100,6 +101,23 @@ def read_manifest(folder: str | Path) -> dict | None:
         return load_manifest(folder)
     except ManifestError:
         return None
+
+
+def stage_count(manifest: dict) -> int:
+    """Stages of the seed's timeline (``--phases``; 1 for an ordinary seed)."""
+    config = manifest.get("config")
+    phases = config.get("phases", 1) if isinstance(config, dict) else 1
+    return phases if isinstance(phases, int) and phases > 1 else 1
+
+
+def timeline_stage(folder: str | Path) -> tuple[Path, int] | None:
+    """(the timeline seed folder, K) when ``folder`` is the ``phase_K`` folder of a timeline
+    seed (whose manifest.json lies one level up), else None."""
+    folder = Path(folder)
+    match = re.fullmatch(r"phase_(\d+)", folder.name)
+    if match and read_manifest(folder.parent) is not None:
+        return folder.parent, int(match.group(1))
+    return None
 
 
 def seed_folder_containing(path: str | Path) -> Path | None:

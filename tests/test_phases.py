@@ -246,6 +246,24 @@ def test_ground_truth_as_prediction_scores_perfectly(timeline, tmp_path):
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "stages" in r.stderr, r.stderr
 
 
+def test_a_timeline_seed_is_read_stage_by_stage(timeline, tmp_path):
+    """The whole seed and a phase_K folder get messages that say how to read them; a stage's
+    folder is a valid --gt for the evaluation (its ground truth scores itself perfectly)."""
+    from datasets import DatasetError, Scene
+    from evaluation import score_reconstruction
+    from evaluation.inputs import InputError
+
+    seed, _, _ = timeline
+    with pytest.raises(InputError, match=r"a timeline of 3 stages \(--phases\); score one stage"):
+        score_reconstruction(seed / "phase_1" / "ground_truth" / "points.ply", seed)
+    results, _ = score_reconstruction(seed / "phase_1" / "ground_truth" / "points.ply", seed / "phase_1")
+    assert results["metrics"]["fscore"] == 1.0
+    with pytest.raises(DatasetError, match="read it with datasets.change.Timeline"):
+        Scene(seed)
+    with pytest.raises(DatasetError, match=r"stage 1 of the timeline seed .*sequence\(1, kind\)"):
+        Scene(seed / "phase_1")
+
+
 def test_change_predictions_are_checked(tmp_path):
     from evaluation.change import read_change_prediction
     from evaluation.inputs import InputError
