@@ -113,11 +113,13 @@ def run(args) -> Path | None:
 
 
 def main(argv=None) -> int:
-    args = parse_args(argv)
     try:
-        out = run(args)
+        out = run(parse_args(argv))
     except ViewError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # e.g. a folder on the way that this user may not look into
+        print(f"error: {exc.filename or 'input'}: {exc.strerror or exc}; check the path and its permissions", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("error: interrupted; no recording was written", file=sys.stderr)

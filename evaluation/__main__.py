@@ -172,6 +172,9 @@ def main(argv=None) -> int:
     except (InputError, DamagedFileError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # e.g. a folder on the way that this user may not look into
+        print(f"error: {exc.filename or 'input'}: {exc.strerror or exc}; check the path and its permissions", file=sys.stderr)
+        return 2
     except MemoryError:
         print("error: out of memory; voxel-downsample the clouds (--voxel) or score a smaller cloud", file=sys.stderr)
         return 2

@@ -9,6 +9,7 @@ import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -388,6 +389,7 @@ def test_simulator_refuses_non_finite_positions_and_bounds_long_moves(tmp_path):
     over the scene's bounds only (it used to allocate 25 GiB) and lands where asked."""
     script = f"""
 import sys
+from pathlib import Path
 sys.path.insert(0, {str(ROOT / 'tests')!r})
 import numpy as np
 import scenes
@@ -411,3 +413,23 @@ print('THROUGH_WALL', sim.can_move([0, -1e8, 1.5], [0, 10, 1.5]), sim.can_move([
     assert out["REFUSED"].startswith("position must be finite")
     assert float(out["MOVED"]) == pytest.approx(1e9)
     assert out["THROUGH_WALL"] == "False True"  # the wall blocks the long sweep; a clear long line is free
+
+
+def test_paths_that_cannot_be_looked_into_are_one_line_errors(tmp_path):
+    """A folder on the way that this user may not enter (EACCES): every CLI says so in one
+    line and exits 2. Made here with /proc/1/root, which even root may not enter in a
+    container; skipped where it can be entered."""
+    hidden = Path("/proc/1/root/nothing")
+    try:
+        hidden.exists()
+        pytest.skip("/proc/1/root can be looked into here")
+    except PermissionError:
+        pass
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    for args in (["evaluation", "reconstruction", "--gt", str(hidden), "--pred", str(hidden)],
+                 ["datasets.view", str(hidden), "--out", str(tmp_path / "x.rrd")],
+                 ["generator", "verify", str(hidden)],
+                 ["generator", "--seeds", "1", "--out", str(hidden)]):
+        r = subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=ROOT, env=env)
+        assert r.returncode == 2 and "Permission denied" in r.stderr, (args, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, (args, r.stderr)

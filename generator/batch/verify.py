@@ -42,9 +42,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("dir", type=Path, help="an output folder (--out of python -m generator) or one seed folder")
     p.add_argument("--sizes-only", action="store_true", help="check sizes, skip hashing (fast, misses same-size changes)")
     args = p.parse_args(argv)
-    if not args.dir.is_dir():
-        p.error(f"{args.dir} is not a folder")
     try:
+        if not args.dir.is_dir():
+            p.error(f"{args.dir} is not a folder")
         seeds = seeds_in(args.dir)
     except OSError as exc:
         p.error(f"cannot read {args.dir}: {exc.strerror}")
