@@ -42,8 +42,8 @@ def _seed_folder_gt(folder: Path) -> Path:
                          f"(K = 0 to {n - 1})")
     gt = folder / "ground_truth" if (folder / "ground_truth").is_dir() or (home / "manifest.json").exists() else folder
     if gt != folder and manifest is None:
-        raise InputError(f"{folder}: incomplete seed folder (no readable manifest.json); rerun python -m generator "
-                         "for this seed")
+        raise InputError(f"{folder}: incomplete seed folder (no readable manifest.json); regenerate this seed with "
+                         "python -m generator (move a folder with a damaged manifest away first)")
     missing = [n for n in ("points.ply", "mesh.ply", "scene.h5") if not (gt / n).is_file()]
     if missing:
         raise InputError(f"{gt}: incomplete ground truth, missing {', '.join(missing)}; rerun python -m generator for this seed")
