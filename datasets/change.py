@@ -52,14 +52,6 @@ class Timeline:
         return self._sequences[stage, kind]
 
 
-def _resize_nearest(mask: np.ndarray, height: int, width: int) -> np.ndarray:
-    """Nearest pixel centre (as the ids' resampling rule)."""
-    h, w = mask.shape
-    rows = np.minimum(((np.arange(height) + 0.5) * h / height).astype(int), h - 1)
-    cols = np.minimum(((np.arange(width) + 0.5) * w / width).astype(int), w - 1)
-    return mask[rows[:, None], cols[None, :]]
-
-
 class ChangePairDataset(_Base):
     """Pairs of frames with the same pose at consecutive stages, and what changed between them.
 
@@ -67,8 +59,8 @@ class ChangePairDataset(_Base):
     pose included; the poses are the same), ``change`` (H, W) bool (the pixel's visible
     surface changed, changes.h5), ``stages`` (k-1, k), ``scene`` (seed), ``trajectory``,
     ``index``. ``pairs``: the k of the pairs (k-1, k) to include (default: all);
-    ``transform`` is applied to ``before`` and ``after`` each, and ``change`` follows their
-    size (nearest pixel centre)."""
+    ``transform`` is applied to ``before``, ``after`` and ``change`` each (the mask as an id
+    map: nearest pixel centre, cropped with the frames)."""
 
     def __init__(self, paths, pairs: list[int] | None = None, trajectories: list[str] | None = None,
                  transform: Callable | None = None, as_tensor: bool = False, keys: tuple[str, ...] | None = None):
@@ -98,10 +90,8 @@ class ChangePairDataset(_Base):
         change = tl.changes.pair(k - 1, k).masks[kind][j]
         if self.transform is not None:
             before, after = self.transform(before), self.transform(after)
-            size = next((v.shape[:2] for v in before.values() if isinstance(v, np.ndarray) and v.ndim >= 2
-                         and v.shape[:2] != (3, 3) and v.shape[:2] != (4, 4)), change.shape)
-            if tuple(size) != change.shape:
-                change = _resize_nearest(change, *size)
+            # the mask goes through the same transform as an id map (nearest, cropped, resized)
+            change = self.transform({"instance": change.astype(np.int32), "K": after["K"]})["instance"] == 1
         sample = {"before": before, "after": after, "change": change, "stages": np.array([k - 1, k]),
                   "K": after["K"], "pose": after["pose"], "scene": tl.seed, "trajectory": kind, "index": j}
         from .tasks import _to_tensor

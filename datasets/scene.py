@@ -42,6 +42,16 @@ def _checked(call, *args, path=None):
         raise DatasetError(str(damaged(path, reason(exc)))) from None
 
 
+def _written_with_instance(path: Path) -> None:
+    """coco.json and boxes3d.json exist only where the ``instance`` output was written: say so
+    when a seed made without it is asked for annotations."""
+    manifest = read_manifest(path.parent.parent)
+    outputs = (manifest or {}).get("config", {}).get("outputs") if isinstance(manifest, dict) else None
+    if not path.exists() and outputs and "instance" not in outputs:
+        raise DatasetError(f"{path.parent.parent}: made with --outputs {','.join(outputs)}, without instance, so it has "
+                           f"no {path.name}; regenerate it with instance in --outputs to get annotations")
+
+
 def check_index(i, n: int, what: str) -> int:
     """Python indexing (negative counts from the end) with a message stating the valid range."""
     if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
@@ -162,6 +172,7 @@ class Sequence:
         """The trajectory's instance masks and 2D boxes (``coco.json``, :class:`exporters.coco.CocoReader`)."""
         from exporters.coco import CocoReader
 
+        _written_with_instance(self.folder / "coco.json")
         return _checked(CocoReader, self.folder / "coco.json")
 
     @cached_property
@@ -169,6 +180,7 @@ class Sequence:
         """The trajectory's 3D boxes (``boxes3d.json``, :class:`exporters.boxes3d.Boxes3DReader`)."""
         from exporters.boxes3d import Boxes3DReader
 
+        _written_with_instance(self.folder / "boxes3d.json")
         return _checked(Boxes3DReader, self.folder / "boxes3d.json")
 
     def annotations(self, t: int) -> dict:

@@ -141,9 +141,9 @@ class ClipDataset(_Base):
             # image transforms apply frame by frame; the tracks follow the first frame's change
             new_frames = []
             for k, f in enumerate(sample["frames"]):
-                out = self.transform(f | {"tracks": {"xy": xy[k]}})
+                out = self.transform(f | {"tracks": {"xy": xy[k], "visible": visible[k]}})
                 new_frames.append({key: v for key, v in out.items() if key != "tracks"})
-                xy[k] = out["tracks"]["xy"]
+                xy[k], visible[k] = out["tracks"]["xy"], out["tracks"]["visible"]  # off the new image: not visible
             sample["frames"], sample["tracks"]["xy"] = new_frames, xy
         if self.as_tensor:
             sample = _to_tensor({k: v for k, v in sample.items() if k != "frames"}) | {

@@ -35,10 +35,17 @@ def _image_keys(sample: dict) -> list[str]:
     return [k for k in sample if k in MODALITIES and isinstance(sample[k], np.ndarray) and sample[k].ndim >= 2]
 
 
-def _tracks(sample: dict, fn) -> None:
+def _tracks(sample: dict, fn, width: int, height: int) -> None:
+    """Move track positions ``xy`` with the image; a point that leaves the new ``width`` x
+    ``height`` image is no longer ``visible`` (docs/conventions.md, rule 1)."""
     for key in ("tracks", "tracks_next"):
         if key in sample and sample[key] is not None and "xy" in sample[key]:
-            sample[key] = dict(sample[key]) | {"xy": fn(np.asarray(sample[key]["xy"], np.float64))}
+            xy = fn(np.asarray(sample[key]["xy"], np.float64))
+            new = dict(sample[key]) | {"xy": xy}
+            if "visible" in new:
+                inside = (xy[..., 0] >= 0) & (xy[..., 0] < width) & (xy[..., 1] >= 0) & (xy[..., 1] < height)
+                new["visible"] = np.asarray(new["visible"], bool) & inside
+            sample[key] = new
 
 
 def _objects(out: dict, move, width: int, height: int, resample) -> None:
@@ -92,7 +99,7 @@ class Crop:
             K[0, 2] -= self.x0
             K[1, 2] -= self.y0
             out["K"] = K
-        _tracks(out, lambda xy: xy - [self.x0, self.y0])
+        _tracks(out, lambda xy: xy - [self.x0, self.y0], self.width, self.height)
         return out
 
 
@@ -159,6 +166,9 @@ class Resize:
         out = dict(sample)
         keys = _image_keys(out)
         if not keys:
+            if any(k in out for k in ("K", "tracks", "boxes2d", "masks")):
+                raise ValueError("Resize needs an image in the sample to know the size it scales from (K and "
+                                 "track positions follow it): load at least one image key, e.g. keys=('label',)")
             return out
         h, w = out[keys[0]].shape[:2]
         sx, sy = self.width / w, self.height / h
@@ -186,7 +196,7 @@ class Resize:
         _objects(out, lambda xy: xy * [sx, sy], self.width, self.height, taps.nearest)
         if "K" in out:
             out["K"] = np.diag([sx, sy, 1.0]) @ np.asarray(out["K"], np.float64)
-        _tracks(out, lambda xy: xy * [sx, sy])
+        _tracks(out, lambda xy: xy * [sx, sy], self.width, self.height)
         return out
 
 

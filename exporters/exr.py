@@ -50,7 +50,16 @@ def use_all_cores() -> None:
                                         else os.cpu_count() or 1)
 
 
+def _threads_after_fork() -> None:
+    """A forked child (a DataLoader worker) holds the parent's thread pool without its threads,
+    and any EXR read would wait on them forever: start the child with a pool of its own."""
+    OpenEXR.set_global_thread_count(0)
+    use_all_cores()
+
+
 use_all_cores()
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_threads_after_fork)
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",

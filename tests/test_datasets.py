@@ -6,6 +6,8 @@ import json
 import re
 import multiprocessing as mp
 import shutil
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -148,6 +150,13 @@ def test_resize_and_crop_keep_projections(seed_folder):
             px = np.floor(uv[ok]).astype(int)
             assert ok.sum() > 10
             np.testing.assert_array_equal(frame["label"][px[:, 1], px[:, 0]], labels[ok])
+            # a point is visible only inside the new image (a crop drops the others)
+            inside = (tr["xy"][k][:, 0] >= 0) & (tr["xy"][k][:, 0] < w) & (tr["xy"][k][:, 1] >= 0) & (tr["xy"][k][:, 1] < h)
+            np.testing.assert_array_equal(tr["visible"][k], plain["tracks"]["visible"][k] & inside)
+    cropped = ClipDataset(seed_folder, length=2, transform=Crop(8, 4, 16, 12))[0]["tracks"]
+    assert plain["tracks"]["visible"].sum() > cropped["visible"].sum() > 0
+    with pytest.raises(ValueError, match="Resize needs an image"):  # no image: the scale is unknown
+        ClipDataset(seed_folder, length=2, keys=(), transform=Resize(24, 16))[0]
     rgb = np.random.default_rng(0).uniform(0, 1, (4, 4, 3)).astype(np.float32)
     np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(rgb)), rgb, atol=1e-5)
     assert ToLinear()({"rgb": np.full((1, 1, 3), 0.5, np.float32)})["rgb"][0, 0, 0] == pytest.approx(0.21404, abs=1e-4)
@@ -157,6 +166,26 @@ def _read_items(args):
     folder, indices = args
     ds = FrameDataset(folder)
     return [float(ds[i]["depth"][np.isfinite(ds[i]["depth"])].sum()) for i in indices]
+
+
+def test_forked_workers_read_exr_frames(seed_folder):
+    """DataLoader's default start method on Linux is fork: workers forked from a process that
+    imported the readers (OpenEXR's thread pool started) read EXR frames. In a fresh process
+    (this one runs open3d's threads, which fork must not copy)."""
+    code = f"""
+import multiprocessing as mp, sys
+import numpy as np
+from datasets import FrameDataset
+ds = FrameDataset({str(seed_folder)!r}, keys=("depth",))
+def total(i):
+    return float(np.where(np.isfinite(ds[i]["depth"]), ds[i]["depth"], 0).sum())
+expected = [total(i) for i in range(len(ds))]
+with mp.get_context("fork").Pool(2) as pool:
+    got = pool.map_async(total, range(len(ds))).get(timeout=60)
+print("same" if got == expected else f"differ {{got}} {{expected}}")
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "same", r.stdout + r.stderr[-2000:]
 
 
 def test_concurrent_reads_from_several_processes(seed_folder):
@@ -213,3 +242,15 @@ def test_as_tensor_needs_torch_or_gives_tensors(seed_folder):
         return
     item = ds[0]
     assert isinstance(item["rgb"], torch.Tensor) and item["rgb"].dtype == torch.float32
+
+
+def test_annotations_of_a_seed_made_without_instances(tmp_path):
+    """coco.json and boxes3d.json are written only with the instance output: asking such a
+    seed for annotations says so (not 'damaged, regenerate' with the same options)."""
+    from conftest import run_generator
+
+    r = run_generator(tmp_path, "--seeds", "2", "--outputs", "rgb,depth", "--trajectory", "orbit", "--frames", "2")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert FrameDataset(tmp_path / "seed_000002")[0]["depth"].shape == (32, 48)
+    with pytest.raises(DatasetError, match="without instance, so it has no coco.json; regenerate it with instance"):
+        FrameDataset(tmp_path / "seed_000002", annotations=True)[0]

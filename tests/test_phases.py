@@ -307,7 +307,7 @@ def test_bad_phases_get_one_line_and_exit_2(tmp_path):
 
 
 def test_loaders_pair_frames_with_their_masks(timeline):
-    from datasets import Resize
+    from datasets import Compose, Crop, Resize
     from datasets.change import ChangePairDataset, change_clouds
 
     seed, changes, _ = timeline
@@ -322,6 +322,11 @@ def test_loaders_pair_frames_with_their_masks(timeline):
     assert np.array_equal(item["after"]["depth"], reader.read(1, ["depth"])["depth"])
     small = ChangePairDataset(seed, pairs=[1], transform=Resize(24, 16))[0]
     assert small["change"].shape == small["before"]["depth"].shape == (16, 24)
+    full = changes.pair(0, 1).masks["orbit"][0]
+    cropped = ChangePairDataset(seed, pairs=[1], transform=Crop(12, 8, 24, 16))[0]
+    assert np.array_equal(cropped["change"], full[8:24, 12:36])  # the mask is cropped with the frames
+    both = ChangePairDataset(seed, pairs=[1], transform=Compose(Crop(12, 8, 24, 16), Resize(48, 32)))[0]
+    assert np.array_equal(both["change"], np.repeat(np.repeat(full[8:24, 12:36], 2, axis=0), 2, axis=1))
     clouds = change_clouds(seed, 0, 1)
     assert np.array_equal(clouds["after"]["added"], changes.pair(0, 1).points_added)
     assert [changes.names[u] for u in clouds["before"]["union_instance"][:5]] == \
