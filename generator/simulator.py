@@ -18,7 +18,7 @@ from .blender.render import RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
 from .checks import check_number, check_seed
 from .geometry import camera as cam_model
-from .geometry.collision import position_is_free, segment_is_free
+from .geometry.collision import move_is_allowed, position_is_free
 from .geometry.observability import default_viewpoints, observable_mask
 from .geometry.parts import MeshPart
 from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
@@ -299,11 +299,12 @@ class Simulator(CameraMoves, PaperAPI):
         return position_is_free(self._geometry, np.asarray(position, dtype=np.float64), self.collision_radius)
 
     def can_move(self, start, end) -> bool:
-        """True if the camera sphere can travel in a straight line from ``start`` to ``end``."""
+        """True if the camera sphere can travel in a straight line from ``start`` to ``end``
+        (a camera that starts touching geometry may still move away to a free position:
+        generator/geometry/collision.py ``move_is_allowed``)."""
         self._check_current()
-        return segment_is_free(
-            self._geometry, np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), self.collision_radius
-        )
+        return move_is_allowed(self._geometry, np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64),
+                               self.collision_radius)
 
     def set_world_from_camera(self, matrix, check_collisions: bool = True) -> bool:
         """Move the camera to a pose; returns True (and leaves the pose unchanged) if the

@@ -341,3 +341,28 @@ def test_drivers_make_objects_dynamic_only_when_they_drive_the_transform(tmp_pat
     sim.step_frame()
     p2 = sim.compute_point_cloud()[0][inst == s]
     np.testing.assert_allclose(p2, p1 + [0.25, 0, 0], atol=1e-5)
+
+
+def test_a_camera_placed_too_close_to_a_surface_can_leave(tmp_path):
+    """A .blend camera 0.2 m above the ground (inside the 0.3 m collision sphere): turning in
+    place and moving away to a free position are allowed (the paper's code, a ray test, allows
+    them); moving along the ground, or back into it, is refused."""
+    scenes.new_scene(32, 24)
+    scenes.add_plane("Ground", (50, 50), (0, 0, 0))
+    scenes.look_along_y((0, 0, 0.2))
+    sim = Simulator(scenes.save(tmp_path / "low.blend"), points_density=1)
+    start = sim.get_world_from_camera()
+    assert not sim.is_free(start[:3, 3])
+    along = start.copy()
+    along[1, 3] += 1.0
+    assert sim.set_world_from_camera(along) is True  # refused: still touching the ground
+    turned = start.copy()
+    turned[:3, :3] = start[:3, :3] @ np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]])
+    assert sim.set_world_from_camera(turned) is False  # a turn in place
+    up = turned.copy()
+    up[2, 3] = 1.2
+    assert sim.set_world_from_camera(up) is False and sim.is_free(up[:3, 3])  # away from the ground
+    assert sim.set_world_from_camera(start) is True  # back into it: refused
+    through = up.copy()
+    through[2, 3] = -1.0
+    assert sim.can_move(start[:3, 3], through[:3, 3]) is False  # through the ground, never

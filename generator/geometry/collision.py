@@ -83,6 +83,18 @@ def segment_is_free(
     return not bool(geometry.inside_solid(b[None])[0])
 
 
+def move_is_allowed(geometry: SceneGeometry, start: np.ndarray, end: np.ndarray, radius: float) -> bool:
+    """A camera move: :func:`segment_is_free`, except that staying in place (a turn) is always
+    allowed, and a sphere that already touches geometry at ``start`` (a scene's own camera
+    placed too close to a surface) may leave it: to a free ``end``, along a segment that
+    crosses no surface (the paper's ray test)."""
+    a, b = checked_position(start, "start"), checked_position(end, "end")
+    if np.array_equal(a, b) or segment_is_free(geometry, a, b, radius):
+        return True
+    return (not position_is_free(geometry, a, radius) and position_is_free(geometry, b, radius)
+            and not geometry.segments_blocked(a, b[None])[0])
+
+
 def _clip_to_box(a: np.ndarray, b: np.ndarray, bounds: np.ndarray, margin: float) -> tuple[float, float] | None:
     """Parameter range [t0, t1] of the segment a + t (b - a), t in [0, 1], inside the box
     around all ``bounds`` (P, 2, 3) grown by ``margin``; None if it misses the box."""
