@@ -217,6 +217,23 @@ def test_modified_random_walk_turns_only_after_a_blocked_forward_move(rooms):
     assert actions[1] != FORWARD and FORWARD in actions[2:]
 
 
+def test_modified_random_walk_draws_every_turn_count_alike():
+    """After a refused forward move the walk turns k times, k = round(uniform(-180, 180) / 22.5)
+    redrawn while 0: each k in +-1..+-7 equally likely, +-8 half as likely (rounding), never 0."""
+    from generator.envs.policies import FORWARD, TURN_RIGHT, ModifiedRandomWalk
+
+    policy, counts = ModifiedRandomWalk(angle=22.5, seed=1), {}
+    for _ in range(40000):
+        policy.last, policy.turns_left = FORWARD, 0
+        first = policy(None, {"collided": True})
+        k = policy.turns_left + 1 if first == TURN_RIGHT else policy.turns_left - 1
+        counts[k] = counts.get(k, 0) + 1
+    assert 0 not in counts and set(counts) == set(range(-8, 0)) | set(range(1, 9))
+    share = {k: v / 40000 * 15 for k, v in counts.items()}  # 15 units: 14 whole counts + 2 halves
+    assert all(abs(share[k] - 1) < 0.08 for k in counts if abs(k) < 8)
+    assert all(abs(share[k] - 0.5) < 0.06 for k in (-8, 8))
+
+
 def test_env_and_raycam_modules_do_not_import_blender():
     import os
     import subprocess

@@ -37,7 +37,11 @@ class ModifiedRandomWalk:
 
     def __call__(self, observation, info) -> int:
         if self.last == FORWARD and info.get("collided", False):
-            self.turns_left = int(round(self.rng.uniform(-180.0, 180.0) / self.angle)) or 1
+            # a heading that rounds to the blocked one would collide again: draw again (the
+            # paper's walk redraws after each refused try), so every turn count is as likely
+            self.turns_left = 0
+            while self.turns_left == 0:
+                self.turns_left = int(round(self.rng.uniform(-180.0, 180.0) / self.angle))
         if self.turns_left:
             step = 1 if self.turns_left > 0 else -1
             self.turns_left -= step
