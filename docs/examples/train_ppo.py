@@ -55,7 +55,8 @@ def main() -> None:
     p.add_argument("--cache-dir", type=Path, default=Path("/tmp/buildee-sites"))
     p.add_argument("--out", type=Path, default=Path("ppo_exploration.zip"))
     args = p.parse_args()
-    make_env(args.seeds, args.cache_dir)().close()  # build the sites once, before the workers start
+    # each worker builds (or loads from --cache-dir) its sites at its first reset; a file lock in
+    # the cache makes one worker build each site while the others wait for it
     venv = SubprocVecEnv([make_env(args.seeds, args.cache_dir) for _ in range(args.envs)], start_method="spawn")
     model = PPO("MultiInputPolicy", venv, n_steps=512, batch_size=128, verbose=1, seed=0)
     model.learn(total_timesteps=args.timesteps)
