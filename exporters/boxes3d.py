@@ -108,6 +108,8 @@ class Boxes3DReader:
         """Frame ``frame``'s boxes (n = instances in view): ``instance``, ``label``, ``pixels``
         (n,) ints, ``pixel_share`` (n,), ``centre``, ``size`` (n, 3) metres, ``rotation``
         (n, 3, 3) world_from_box."""
+        if frame not in self._frames:
+            raise DamagedFileError(f"{self.path}: has no frame {frame}; {REMEDY}")
         boxes = self._frames[frame]
         try:
             out = {"instance": np.array([b["instance"] for b in boxes], np.int32),

@@ -150,6 +150,8 @@ class CocoReader:
 
     def annotations(self, frame: int) -> list[dict]:
         """The raw COCO annotations of frame ``frame`` (0-based)."""
+        if frame not in self._by_frame:
+            raise DamagedFileError(f"{self.path}: has no image for frame {frame}; {REMEDY}")
         return self._by_frame[frame]
 
     def frame(self, frame: int) -> dict:
@@ -158,21 +160,25 @@ class CocoReader:
         ``amodal_bbox`` (n, 4) float64 as (x0, y0, x1, y1) pixel edges; ``masks`` is not
         included: instance k's mask is ``frame.instance == instance_id[k]`` (the RLE decodes
         to exactly that; :meth:`masks` decodes them)."""
-        anns = self._by_frame[frame]
+        anns = self.annotations(frame)
 
         def xyxy(key):
             b = np.array([a[key] for a in anns], np.float64).reshape(-1, 4)
             return np.column_stack([b[:, :2], b[:, :2] + b[:, 2:]])
 
-        return {"instance_id": np.array([a["instance_id"] for a in anns], np.int32),
-                "category_id": np.array([a["category_id"] for a in anns], np.int32),
-                "label": np.array([self.categories[a["category_id"]]["label_id"] for a in anns], np.int32),
-                "area": np.array([a["area"] for a in anns], np.int64),
-                "bbox": xyxy("bbox"), "amodal_bbox": xyxy("amodal_bbox")}
+        try:
+            return {"instance_id": np.array([a["instance_id"] for a in anns], np.int32),
+                    "category_id": np.array([a["category_id"] for a in anns], np.int32),
+                    "label": np.array([self.categories[a["category_id"]]["label_id"] for a in anns], np.int32),
+                    "area": np.array([a["area"] for a in anns], np.int64),
+                    "bbox": xyxy("bbox"), "amodal_bbox": xyxy("amodal_bbox")}
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DamagedFileError(f"{self.path}: frame {frame}'s annotations are not of this format "
+                                   f"({exc.__class__.__name__}: {exc}); {REMEDY}") from None
 
     def masks(self, frame: int) -> np.ndarray:
         """(n, H, W) bool decoded masks of frame ``frame``, in :meth:`frame`'s order."""
-        anns = self._by_frame[frame]
+        anns = self.annotations(frame)
         im = self.images[frame]
         if not anns:
             return np.zeros((0, im["height"], im["width"]), bool)

@@ -357,6 +357,31 @@ def test_sequence_returns_the_annotations_of_each_frame(flown):
     assert seq.annotations(-1)["boxes2d"]["instance_id"].tolist() == coco.frame(T - 1)["instance_id"].tolist()
 
 
+def test_damaged_annotation_files_are_one_line_errors(flown, tmp_path):
+    """Files that parse but lack a frame or a field: DamagedFileError naming the file (was a
+    bare KeyError from deep inside the reader)."""
+    import json
+
+    from exporters.hdf5 import DamagedFileError
+
+    _, out = flown
+    cases = {"category": lambda d: d["annotations"][0].__setitem__("category_id", 999),
+             "area": lambda d: [a.pop("area") for a in d["annotations"]],
+             "image": lambda d: d.update(images=[im for im in d["images"] if im["frame"] != 1],
+                                         annotations=[a for a in d["annotations"] if a["image_id"] != 2])}
+    for name, damage in cases.items():
+        doc = json.loads((out / "coco.json").read_text())
+        damage(doc)
+        (tmp_path / f"{name}.json").write_text(json.dumps(doc))
+        with pytest.raises(DamagedFileError, match=f"{name}.json: (frame|has no image)"):
+            [CocoReader(tmp_path / f"{name}.json").frame(t) for t in range(T)]
+    doc = json.loads((out / "boxes3d.json").read_text())
+    doc["frames"] = doc["frames"][:1]
+    (tmp_path / "boxes.json").write_text(json.dumps(doc))
+    with pytest.raises(DamagedFileError, match="boxes.json: has no frame 1"):
+        Boxes3DReader(tmp_path / "boxes.json").frame(1)
+
+
 @pytest.mark.parametrize("transform", ["crop", "shrink", "enlarge"])
 def test_resize_and_crop_keep_boxes_the_tight_boxes_of_the_masks(flown, transform):
     from datasets.scene import Sequence
