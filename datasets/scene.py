@@ -276,10 +276,15 @@ class Scene:
             raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
         from exporters.ply import PlyError
 
+        from exporters.ground_truth import GroundTruthError, check_ply_version
+
         try:
             d = read_ply(path)
+            check_ply_version(path, d.comments)
         except PlyError as exc:
             raise DatasetError(f"{exc}; regenerate this seed with python -m generator") from None
+        except GroundTruthError as exc:
+            raise DatasetError(str(exc)) from None
         missing = [k for k in ("label", "instance", "dynamic") if k not in d.vertex]
         if missing:
             raise DatasetError(f"{path}: no {', '.join(missing)} property; not a ground-truth cloud of "

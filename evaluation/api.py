@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters.ground_truth import GroundTruthError, read_ground_truth
+from exporters.ground_truth import GroundTruthError, check_ply_version, read_ground_truth
 from exporters.manifest import read_manifest, stage_count, timeline_stage
+from exporters.ply import PlyError, read_ply_comments
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
 from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
@@ -57,6 +58,10 @@ def load_gt_cloud(path: str | Path, include_dynamic: bool = True) -> tuple[Cloud
     path = Path(path)
     if path.is_dir():
         path = _seed_folder_gt(path) / "points.ply"
+        try:
+            check_ply_version(path, read_ply_comments(path))
+        except (GroundTruthError, PlyError) as exc:
+            raise InputError(str(exc)) from None
     elif not path.exists():
         raise InputError(f"{path}: no such file or folder")
     # a PLY names its labels in its header; other files may hold class names, read with the table beside them

@@ -30,6 +30,8 @@ from generator.geometry.sampling import ground_height, outward_normals, sample_p
 from generator.geometry.seeding import stream
 
 from . import FORMAT_VERSION, VERSION_REMEDY
+
+PLY_VERSION_COMMENT = "buildee ground truth format"  # the PLY header's comment, followed by the version
 from .hdf5 import CHECKSUM, H5_ERRORS, create_file, damaged, dataset, reason, text_attribute
 from .palette import label_colors
 from .ply import PlyData, read_ply, write_ply
@@ -91,7 +93,7 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     matrices = np.asarray(matrices, np.float64).reshape(len(frames), len(dyn), 4, 4)
     first = [p.matrix if not p.dynamic else matrices[0, dyn.index(i)] for i, p in enumerate(parts)]
     colors = label_colors(labels)
-    comments = [f"buildee ground truth format {FORMAT_VERSION}", "units metres, world frame Z up",
+    comments = [f"{PLY_VERSION_COMMENT} {FORMAT_VERSION}", "units metres, world frame Z up",
                 f"labels {json.dumps(labels)}"]
 
     from generator.geometry.observability import observable_mask  # loads open3d (after bpy, if any)
@@ -189,6 +191,14 @@ def write_simulator_ground_truth(sim, folder: str | Path, seed: int,
 
 def _with_matrix(part: MeshPart, matrix: np.ndarray) -> MeshPart:
     return replace(part, matrix=np.asarray(matrix, np.float64))
+
+
+def check_ply_version(path: str | Path, comments: list[str]) -> None:
+    """Refuse a points.ply / mesh.ply whose header does not state this format version."""
+    stated = [c[len(PLY_VERSION_COMMENT):].strip() for c in comments if c.startswith(PLY_VERSION_COMMENT)]
+    if stated != [FORMAT_VERSION]:
+        raise GroundTruthError(f"{path}: ground-truth format {stated[0] if stated else 'not stated'}, this reader "
+                               f"reads {FORMAT_VERSION} ({VERSION_REMEDY})")
 
 
 class GroundTruthError(ValueError):

@@ -142,6 +142,15 @@ def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
     return fmt, elements, comments
 
 
+def read_ply_comments(path: str | Path) -> list[str]:
+    """The header comments of a PLY file (the header only is read)."""
+    path = Path(path)
+    if not path.is_file():
+        raise PlyError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        return _parse_header(f, path)[2]
+
+
 def read_ply(path: str | Path) -> PlyData:
     """Read a PLY point cloud or triangle mesh (ASCII or binary). Polygons with more than
     three corners are split into triangle fans; face properties repeat for each triangle."""

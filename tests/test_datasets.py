@@ -254,3 +254,23 @@ def test_annotations_of_a_seed_made_without_instances(tmp_path):
     assert FrameDataset(tmp_path / "seed_000002")[0]["depth"].shape == (32, 48)
     with pytest.raises(DatasetError, match="without instance, so it has no coco.json; regenerate it with instance"):
         FrameDataset(tmp_path / "seed_000002", annotations=True)[0]
+
+
+def test_a_ground_truth_cloud_of_another_format_is_refused(seed_folder, tmp_path):
+    """points.ply states its format version in a header comment (docs/format.md); the loader
+    and the evaluation refuse another version, or none, saying how to regenerate."""
+    from evaluation import score_reconstruction
+    from evaluation.inputs import InputError
+
+    copy = tmp_path / seed_folder.name
+    shutil.copytree(seed_folder, copy)
+    ply = copy / "ground_truth" / "points.ply"
+    original = ply.read_bytes()
+    stated = f"buildee ground truth format {FORMAT_VERSION}".encode()
+    assert original.count(stated) == 1
+    for replacement, says in ((b"buildee ground truth format 0.3", "format 0.3"), (b"x" * len(stated), "not stated")):
+        ply.write_bytes(original.replace(stated, replacement.ljust(len(stated))))
+        with pytest.raises(DatasetError, match=f"ground-truth {says}|ground-truth format {says}"):
+            Scene(copy).point_cloud()
+        with pytest.raises(InputError, match=says):
+            score_reconstruction(seed_folder / "ground_truth" / "points.ply", copy)
