@@ -49,10 +49,17 @@ def write_png(path: Path, array: np.ndarray, kind: str, name: str) -> None:
 
 
 def read_png(path: Path, kind: str) -> np.ndarray:
-    """Inverse of :func:`write_png`: float32 colour in [0, 1], or int32 ids (-1 = none)."""
-    data = np.asarray(Image.open(path))
+    """Inverse of :func:`write_png`: float32 colour in [0, 1], or int32 ids (-1 = none). A PNG
+    of another kind (not 8-bit RGB for colour, not 16-bit grey for ids) raises ValueError."""
+    with Image.open(path) as im:
+        mode = im.mode
+        data = np.asarray(im)
     if kind == "rgb8":
+        if mode not in ("RGB", "RGBA"):
+            raise ValueError(f"{path}: a {mode} PNG, not the 8-bit RGB colour image this file should hold")
         return (data[..., :3].astype(np.float32) / np.float32(255.0)).astype(np.float32)
+    if data.ndim != 2 or data.dtype != np.uint16:
+        raise ValueError(f"{path}: a {mode} PNG, not the 16-bit grey id image this file should hold")
     return data.astype(np.int32) - 1
 
 
@@ -155,6 +162,8 @@ class FrameReader:
                     out[k] = read_png(path, kind)
                 except OSError as exc:
                     raise DamagedFileError(f"{path}: damaged PNG ({exc.__class__.__name__}); {REMEDY}") from None
+                except ValueError as exc:
+                    raise DamagedFileError(f"{exc}; {REMEDY}") from None
         shape = (self.height, self.width)
         bad = [k for k, v in out.items() if v.shape[:2] != shape]
         if bad:

@@ -70,8 +70,19 @@ def read_depth_png(path: str | Path, unit: float | None = None) -> np.ndarray:
     defaults to ``integer_depth_scale`` of the transforms.json beside the file."""
     path = Path(path)
     if unit is None:
-        unit = float(json.loads((path.parent / TRANSFORMS).read_text())["integer_depth_scale"])
-    steps = np.asarray(Image.open(path)).astype(np.float64)
+        try:
+            unit = float(json.loads((path.parent / TRANSFORMS).read_text())["integer_depth_scale"])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ValueError(f"{path}: no depth unit ({path.parent / TRANSFORMS}: {exc.__class__.__name__}); "
+                             "pass unit= (metres per step)") from None
+    try:
+        with Image.open(path) as im:
+            data = np.asarray(im)
+    except OSError as exc:
+        raise ValueError(f"{path}: unreadable PNG ({exc}); regenerate the seed") from None
+    if data.ndim != 2 or data.dtype != np.uint16:
+        raise ValueError(f"{path}: a {data.dtype} PNG of shape {data.shape}, not a 16-bit grey depth image")
+    steps = data.astype(np.float64)
     return np.where(steps > 0, steps * unit, np.inf).astype(np.float32)
 
 

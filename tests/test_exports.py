@@ -262,3 +262,26 @@ def test_tracks_show_every_depth_coverage_keeps_the_depth_limit(tmp_path):
     tap = tr["tapvid"]
     far_visible = ~tap["occluded"] & (np.linalg.norm(tap["tracks_3d"] - poses[:, None, :3, 3].swapaxes(0, 1), axis=-1) > 15)
     assert far_visible.any()  # TAP-Vid marks far points visible too
+
+
+def test_png_readers_refuse_pngs_of_another_kind(seed_folder, tmp_path):
+    """A colour PNG where a depth or id PNG belongs (or the reverse) is refused with one line
+    naming the file; a truncated one too (it used to be read as 'metres' or as ids)."""
+    from datasets import DatasetError, Scene
+
+    orbit = seed_folder / "orbit"
+    with pytest.raises(ValueError, match="rgb_000000.png: a uint8 PNG of shape .* not a 16-bit grey depth image"):
+        read_depth_png(orbit / "rgb_000000.png", 0.002)
+    cut = tmp_path / "depth_000000.png"
+    cut.write_bytes((orbit / "depth_000000.png").read_bytes()[:60])
+    with pytest.raises(ValueError, match="depth_000000.png: unreadable PNG"):
+        read_depth_png(cut, 0.002)
+    with pytest.raises(ValueError, match="no depth unit"):
+        read_depth_png(cut)
+    import shutil
+
+    copy = tmp_path / "seed"
+    shutil.copytree(seed_folder, copy)
+    shutil.copy(orbit / "rgb_000001.png", copy / "orbit" / "label_000001.png")
+    with pytest.raises(DatasetError, match="label_000001.png: a RGB PNG, not the 16-bit grey id image"):
+        Scene(copy)["orbit"].read(1, ["label"])
