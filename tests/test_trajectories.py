@@ -181,3 +181,10 @@ def test_bounded_walks_stay_in_their_box(checker):
     assert not np.all((free.positions >= lo) & (free.positions <= hi))
     with pytest.raises(ValueError, match="lo <= hi"):
         BoundedChecker(checker, hi, lo)
+
+
+def test_a_fly_through_too_long_for_its_box_is_refused_at_once(checker):
+    """10,000 frames at 3 m/s (3 km) need waypoints 250 m apart in a 129 m box: a one-line error
+    (the waypoint draw used to loop forever)."""
+    with pytest.raises(TrajectoryError, match="3000 m .* more than the 129 m diagonal of its box: use fewer frames"):
+        spline_flythrough(checker, ((-45, -45, 2), (45, 45, 20)), 10_000, np.random.default_rng(0))

@@ -33,14 +33,19 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
     if frames < 2 or speed <= 0 or np.any(hi <= lo):
         raise ValueError("a fly-through needs frames >= 2, speed > 0 and non-empty bounds")
     length = speed * (frames - 1) / fps
+    spacing = length / waypoints * 0.5  # consecutive waypoints at least this far apart
+    if spacing >= float(np.linalg.norm(hi - lo)):
+        raise TrajectoryError(f"a fly-through of {length:.0f} m ({frames} frames at {speed:g} m/s) needs waypoints "
+                              f"{spacing:.0f} m apart, more than the {np.linalg.norm(hi - lo):.0f} m diagonal of its "
+                              "box: use fewer frames")
     pitch = math.radians(pitch_deg)
     for _ in range(attempts):
-        pts = [lo + rng.random(3) * (hi - lo)]
-        while len(pts) < waypoints:
-            cand = lo + rng.random(3) * (hi - lo)
-            if checker.is_free(cand) and np.linalg.norm(cand - pts[-1]) > length / waypoints * 0.5:
+        pts, draws = [lo + rng.random(3) * (hi - lo)], 0
+        while len(pts) < waypoints and draws < 10_000:
+            cand, draws = lo + rng.random(3) * (hi - lo), draws + 1
+            if checker.is_free(cand) and np.linalg.norm(cand - pts[-1]) > spacing:
                 pts.append(cand)
-        if not checker.is_free(pts[0]):
+        if len(pts) < waypoints or not checker.is_free(pts[0]):
             continue
         curve = _catmull_rom(np.array(pts), 50)
         cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
@@ -57,4 +62,5 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
         poses = np.stack([heading_pose(p, y, pitch) for p, y in zip(pos, yaw)])
         return Trajectory(poses, timestamps(frames, fps), "spline", [""] * (frames - 1),
                           {"speed_m_s": speed, "waypoints": np.array(pts).tolist(), "pitch_deg": pitch_deg, "fps": fps})
-    raise TrajectoryError(f"no collision-free fly-through found in {attempts} attempts")
+    raise TrajectoryError(f"no collision-free fly-through of {length:.0f} m found in {attempts} attempts (the "
+                          "curve through the waypoints was too short or blocked): use fewer frames")
