@@ -283,6 +283,20 @@ def test_out_inside_a_seed_folder_is_refused(tmp_path, finished):
     assert r.returncode == 2 and "is inside the seed folder" in r.stderr
 
 
+def test_overwrite_refused_while_a_half_deleted_old_seed_is_set_aside(tmp_path, finished):
+    """A replacement whose deletion of the old seed failed leaves .seed_N.replaced without its
+    manifest: the next --overwrite says so at once (it used to render the whole seed, then
+    fail to commit, every time)."""
+    folder = _copy_seed(finished, tmp_path)
+    leftover = tmp_path / ".seed_000004.replaced" / "orbit"
+    leftover.mkdir(parents=True)
+    (leftover / "frame_000000.exr").write_bytes(b"left")
+    before = _snapshot(folder)
+    r = run(tmp_path, "--seeds", "4", "--overwrite")
+    assert r.returncode == 3 and ".seed_000004.replaced is left from an earlier replacement" in r.stdout, r.stdout[-2000:]
+    assert _snapshot(folder) == before and not (tmp_path / ".seed_000004.partial").exists()
+
+
 def test_scene_cli_out_naming_a_file(tmp_path):
     f = tmp_path / "site"
     f.write_text("x")

@@ -212,7 +212,26 @@ def commit(out: Path, seed: int, config: dict, replace: bool) -> str:
             os.rename(replaced_folder(out, seed), final)
         return f"could not move {partial.name} to {final.name}: {exc.strerror}"
     (final / PARTIAL_MARKER).unlink(missing_ok=True)
-    _drop_replaced(out, seed)
+    return ""
+
+
+def drop_replaced(out: Path, seed: int) -> str:
+    """After a committed replacement: delete the old seed it set aside. The new seed is
+    complete either way; returns '' or a note saying what is left to delete by hand."""
+    try:
+        _drop_replaced(out, seed)
+    except OSError as exc:
+        return (f"the old seed set aside in {replaced_folder(out, seed)} could not be deleted "
+                f"({exc.filename}: {exc.strerror}); delete that folder by hand")
+    return ""
+
+
+def leftover_replaced(out: Path, seed: int) -> str:
+    """'' or why ``seed`` cannot be replaced now: a partly deleted old seed (no manifest any
+    more) is still set aside from an earlier replacement."""
+    old = replaced_folder(out, seed)
+    if os.path.lexists(old) and os.path.lexists(seed_folder(out, seed)):
+        return f"{old} is left from an earlier replacement whose deletion failed; delete it, then rerun"
     return ""
 
 

@@ -81,9 +81,13 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
         if restored:
             tqdm.write(f"seed {seed}: {restored}")
         d = folders.decide(out, seed, cfg.to_dict(), opts.overwrite, opts.repair, True if opts.hashes else None)
+        blocked = folders.leftover_replaced(out, seed) if d.action == "run" and d.replace else ""
     except OSError as exc:
         lock.release()
         return None, SeedResult(seed, "conflict", f"cannot check {exc.filename or out}: {exc.strerror}; left alone"), None
+    if blocked:
+        lock.release()
+        return None, SeedResult(seed, "conflict", blocked), None
     if d.action == "run":
         return lock, None, d
     if d.action == "skip":

@@ -104,6 +104,9 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
         except OSError as exc:
             problem = f"{exc.filename or folder}: {exc.strerror}"
         if not problem:
+            left = folders.drop_replaced(out, job.seed) if job.replace else ""
+            if left:  # the new seed is committed all the same
+                emit({"event": "note", "message": left})
             return Outcome(job.seed, "done", "", done, seconds, note=note)
         return Outcome(job.seed, "failed", f"not committed: {problem}", {}, seconds, note=note)
     return Outcome(job.seed, "failed", _cause(code, errors, "".join(stderr), folder), {}, seconds, lost=code < 0,
