@@ -151,11 +151,16 @@ def main(argv=None) -> int:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
     from .batch.executors import ExecutorError, make_executor
-    from .batch.runner import Options, exit_code, interrupt, run_seeds
+    from .batch.runner import INTERRUPTED, Options, exit_code, interrupt, run_seeds
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
     opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers or 1)
+    stopped = "interrupted before any seed started; nothing was written"
+    # Ctrl-C is remembered from the start (Ray's start-up swallows it); SIGTERM gets our handler
+    # once the executor is up (Ray's own start-up handler aborts if a Python one was set)
+    signal.signal(signal.SIGINT, interrupt)
+    INTERRUPTED.clear()
     try:
         executor = make_executor(args.executor, args.out, workers=opts.workers, address=args.ray_address,
                                  cpus_per_seed=args.cpus_per_seed or DEFAULT_CPUS_PER_SEED,
@@ -163,8 +168,15 @@ def main(argv=None) -> int:
     except ExecutorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    signal.signal(signal.SIGTERM, interrupt)  # a polite kill cleans up like Ctrl-C
-    signal.signal(signal.SIGINT, interrupt)
+    except KeyboardInterrupt:
+        print(stopped, file=sys.stderr)
+        return 130
+    for sig in (signal.SIGTERM, signal.SIGINT):  # a polite kill cleans up like Ctrl-C
+        signal.signal(sig, interrupt)
+    if INTERRUPTED.is_set():  # a signal that a library swallowed while the executor started
+        executor.close()
+        print(stopped, file=sys.stderr)
+        return 130
     try:
         results = run_seeds(args.out, seeds, cfg, opts, executor)
     except KeyboardInterrupt:
