@@ -45,9 +45,11 @@ def _checked(call, *args, path=None):
 def _written_with_instance(path: Path) -> None:
     """coco.json and boxes3d.json exist only where the ``instance`` output was written: say so
     when a seed made without it is asked for annotations."""
-    manifest = read_manifest(path.parent.parent)
-    outputs = (manifest or {}).get("config", {}).get("outputs") if isinstance(manifest, dict) else None
-    if not path.exists() and outputs and "instance" not in outputs:
+    if path.exists():
+        return
+    config = (read_manifest(path.parent.parent) or {}).get("config")
+    outputs = config.get("outputs") if isinstance(config, dict) else None
+    if outputs and "instance" not in outputs:
         raise DatasetError(f"{path.parent.parent}: made with --outputs {','.join(outputs)}, without instance, so it has "
                            f"no {path.name}; regenerate it with instance in --outputs to get annotations")
 
