@@ -7,13 +7,12 @@ __all__ = ["MAX_POINTS", "UNLABELLED_ID", "subsample_stride", "subsampled_count"
 
 
 def record_seed(seed_folder, out, trajectories=None, max_points: int = MAX_POINTS, progress=None) -> dict:
-    """Write ``out`` (.rrd) for a seed folder; returns the counts logged (see seed.record_scene)."""
-    from datasets import Scene
-
+    """Write ``out`` (.rrd) for a seed folder (or a stage ``SEED/phase_K`` of a timeline seed);
+    returns the counts logged (see seed.record_scene)."""
     from .common import recording_file
-    from .seed import blueprint, frame_rate, record_scene
+    from .seed import blueprint, open_scene, record_scene, recording_id
 
-    scene = Scene(seed_folder)
+    scene = open_scene(seed_folder)
     kinds = trajectories or scene.trajectories
-    with recording_file(out, f"seed_{scene.seed:06d}", blueprint(kinds, frame_rate(scene[kinds[0]]))) as rec:
+    with recording_file(out, recording_id(scene), blueprint(scene, kinds)) as rec:
         return record_scene(rec, scene, kinds, max_points, progress)

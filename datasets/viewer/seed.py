@@ -6,27 +6,82 @@ Entities (world: metres, Z up; class ids = label ids of labels.json, 65535 unlab
     world/ground_truth/mesh       static  the site's triangles at the first frame (ground_truth/mesh.ply)
     world/<kind>/path             static  the camera centres as one line strip
     world/<kind>/camera           per frame Transform3D (world_from_camera, OpenCV axes); static Pinhole
-    world/<kind>/camera/rgb|depth|label|instance   per frame images (and any other per-pixel array a frame holds)
+    world/<kind>/camera/<modality>   per frame, each image the seed has (images.py: rgb, depth, label,
+                                  instance natively; normal, flow, ... coloured as on the contact sheet)
     world/<kind>/camera/tracks    per frame visible tracked points at their pixel positions (2D)
     world/<kind>/tracks           per frame the same points at their world positions (3D)
     coverage/<kind>               per frame coverage after the frame (share of surface points, 0..1)
 
 Timelines: ``frame`` (t = 0 .. T-1 of each trajectory) and ``time`` (the frame's timestamp, s).
+A seed is opened with :func:`open_scene`: an ordinary seed folder, or one stage
+(``SEED/phase_K``) of a timeline seed (``--phases``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from datasets.scene import DatasetError, Frame, Scene, Sequence
+from datasets.scene import DatasetError, Scene, Sequence
 
 from .common import FRAME_TIMELINE, MAX_POINTS, TIME_TIMELINE, annotation_context, class_ids, subsample_stride
+from .images import log_images
 
-STANDARD_IMAGES = ("rgb", "depth", "label", "instance")
 CLOUD_RADIUS = 0.03   # metres: GT points
 TRACK_RADIUS_UI = 1.0  # UI points: tracked points, 2D and 3D (thousands per frame: small, so the image shows)
 FRUSTUM_DEPTH = 4.0    # metres: where the camera's image plane is drawn in 3D
 PATH_COLORS = [(255, 0, 255), (0, 220, 255), (255, 255, 255), (0, 255, 0)]  # per trajectory, not class colours
+
+
+class Stage:
+    """Stage K of a timeline seed (``SEED/phase_K``, ``--phases``) with what :func:`record_scene`
+    reads of a :class:`Scene`: its frames through ``datasets.change.Timeline``, its GT cloud
+    and mesh from ``phase_K/ground_truth``."""
+
+    point_cloud = Scene.point_cloud  # the same reader: it reads self.path / "ground_truth" / "points.ply"
+
+    def __init__(self, timeline, stage: int):
+        if not 0 <= stage < timeline.stages:
+            raise DatasetError(f"{timeline.path / f'phase_{stage}'}: the timeline seed {timeline.path} has stages "
+                               f"0 to {timeline.stages - 1}; view one of those")
+        self.timeline, self.stage = timeline, stage
+        self.path = timeline.path / f"phase_{stage}"
+        self.seed, self.labels, self.trajectories = timeline.seed, timeline.labels, timeline.trajectories
+
+    def __getitem__(self, kind: str) -> Sequence:
+        return self.timeline.sequence(self.stage, kind)
+
+
+def open_scene(path) -> Scene | Stage:
+    """What ``python -m datasets.view PATH`` shows: an ordinary seed folder as a :class:`Scene`,
+    ``SEED/phase_K`` of a timeline seed as its :class:`Stage` K; a timeline seed's own folder
+    is refused with the command that views a stage."""
+    from pathlib import Path
+
+    from datasets.change import Timeline
+    from exporters.manifest import read_manifest, stage_count, timeline_stage
+
+    path = Path(path)
+    stage = timeline_stage(path) if path.is_dir() else None
+    if stage is not None:
+        return Stage(Timeline(stage[0]), stage[1])
+    manifest = read_manifest(path) if path.is_dir() else None
+    if manifest is not None and stage_count(manifest) > 1:
+        n = stage_count(manifest)
+        raise DatasetError(f"{path}: a timeline seed of {n} stages (--phases); view one stage at a time: "
+                           f"python -m datasets.view {path / 'phase_K'} (K = 0 to {n - 1})")
+    return Scene(path)
+
+
+def recording_id(scene: Scene | Stage) -> str:
+    """seed_NNNNNN, or seed_NNNNNN_phase_K for a stage."""
+    return f"seed_{scene.seed:06d}" + (f"_phase_{scene.stage}" if isinstance(scene, Stage) else "")
+
+
+def default_file_name(scene: Scene | Stage) -> str:
+    """<seed folder name>.rrd, or <seed folder name>_phase_K.rrd for a stage."""
+    if isinstance(scene, Stage):
+        return f"{scene.timeline.path.resolve().name}_phase_{scene.stage}.rrd"
+    return f"{scene.path.resolve().name}.rrd"
 
 
 def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: int = MAX_POINTS,
@@ -45,20 +100,28 @@ def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: 
     return counts
 
 
-def blueprint(kinds: list[str], fps: float | None = None):
-    """The default layout: the site in 3D (the cameras show their RGB; depth, labels and
-    instances only in 2D); per trajectory its RGB with the tracks, labels and depth; the
-    coverage curves; the time panel on the frame timeline, played at ``fps`` (frames per second)."""
+def blueprint(scene, kinds: list[str]):
+    """The default layout: the site in 3D (the cameras show their RGB only: every other image
+    is excluded from it, so none is drawn on the frustum's image plane); per trajectory its RGB
+    with the tracks, labels and depth (those it has); the coverage curves; the time panel on
+    the frame timeline, played at the first trajectory's frame rate."""
     import rerun.blueprint as rrb
 
     def camera_view(kind: str, name: str, contents: list[str]):
         return rrb.Spatial2DView(name=f"{kind}: {name}", origin=f"world/{kind}/camera",
                                  contents=[f"$origin/{c}" for c in contents])
 
-    rows = [rrb.Horizontal(camera_view(kind, "RGB + tracks", ["rgb", "tracks"]), camera_view(kind, "labels", ["label"]),
-                           camera_view(kind, "depth", ["depth"])) for kind in kinds]
-    site = rrb.Spatial3DView(name="site", origin="world", contents=["$origin/**"] + [
-        f"- $origin/{kind}/camera/{image}" for kind in kinds for image in ("depth", "label", "instance")])
+    rows, hidden = [], []
+    for kind in kinds:
+        modalities = scene[kind].modalities
+        views = [camera_view(kind, "RGB + tracks" if "rgb" in modalities else "tracks",
+                             ["rgb", "tracks"] if "rgb" in modalities else ["tracks"])]
+        views += [camera_view(kind, title, [name]) for name, title in (("label", "labels"), ("depth", "depth"))
+                  if name in modalities]
+        rows.append(rrb.Horizontal(*views))
+        hidden += [f"- $origin/{kind}/camera/{name}" for name in modalities if name != "rgb"]
+    site = rrb.Spatial3DView(name="site", origin="world", contents=["$origin/**"] + hidden)
+    fps = frame_rate(scene[kinds[0]])
     return rrb.Blueprint(rrb.Horizontal(site, rrb.Vertical(*rows, rrb.TimeSeriesView(name="coverage", origin="coverage")),
                                         column_shares=[3, 2]),
                          rrb.SelectionPanel(state="collapsed"), rrb.BlueprintPanel(state="collapsed"),
@@ -118,7 +181,7 @@ def log_sequence(rec, seq: Sequence, progress=None, color=PATH_COLORS[0]) -> int
         rec.set_time(FRAME_TIMELINE, sequence=t)
         rec.set_time(TIME_TIMELINE, duration=frame.timestamp)
         rec.log(f"{base}/camera", rr.Transform3D(translation=frame.pose[:3, 3], mat3x3=frame.pose[:3, :3]))
-        log_images(rec, f"{base}/camera", frame)
+        log_images(rec, f"{base}/camera", frame, seq.labels)
         vis = seq.visible_tracks(t)
         ids = class_ids(labels[vis["ids"]])
         rec.log(f"{base}/camera/tracks", rr.Points2D(vis["xy"], class_ids=ids,
@@ -128,30 +191,3 @@ def log_sequence(rec, seq: Sequence, progress=None, color=PATH_COLORS[0]) -> int
         if t < len(coverage):
             rec.log(f"coverage/{seq.kind}", rr.Scalars(float(coverage[t])))
     return len(seq)
-
-
-def log_images(rec, path: str, frame: Frame) -> None:
-    """RGB as 8-bit sRGB (rounded, as the frames' PNGs), depth in metres (0 where none),
-    labels and instances as segmentation images, any other per-pixel array scaled to its range."""
-    import rerun as rr
-
-    rgb = np.round(np.clip(frame.rgb.astype(np.float32), 0, 1) * 255).astype(np.uint8)
-    rec.log(f"{path}/rgb", rr.Image(rgb))
-    depth = np.where(np.isfinite(frame.depth), frame.depth, 0).astype(np.float32)
-    rec.log(f"{path}/depth", rr.DepthImage(depth, meter=1.0))
-    rec.log(f"{path}/label", rr.SegmentationImage(class_ids(frame.label)))
-    rec.log(f"{path}/instance", rr.SegmentationImage(class_ids(frame.instance)))
-    for name, value in frame.as_dict().items():
-        if name not in STANDARD_IMAGES and isinstance(value, np.ndarray) and value.shape[:2] == frame.depth.shape:
-            rec.log(f"{path}/{name}", rr.Image(scaled_to_range(value)))
-
-
-def scaled_to_range(a: np.ndarray) -> np.ndarray:
-    """An array of any type as 8-bit, its finite min..max mapped to 0..255 (non-finite: 0)."""
-    a = a.astype(np.float64)
-    ok = np.isfinite(a)
-    if not ok.any():
-        return np.zeros(a.shape, np.uint8)
-    lo, hi = a[ok].min(), a[ok].max()
-    out = np.where(ok, (a - lo) / (hi - lo if hi > lo else 1.0), 0)
-    return np.round(out * 255).astype(np.uint8)
