@@ -133,3 +133,25 @@ def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndar
         raise ValueError(f"unknown trajectory kind {kind!r}")
     # level camera ('forward' is horizontal), kept inside the flyable volume
     return walk(BoundedChecker(checker, lo, hi), levelled(start), frames - 1, rng, step=1.0, angle=15.0, fps=fps)
+
+
+def plan_trajectories(sim, kinds, start: np.ndarray, seed: int, frames: int, fps: float) -> list:
+    """[(kind, trajectory)] for each of ``kinds`` on the Simulator ``sim``, all planned before
+    any frame is rendered (a trajectory that cannot be planned fails in seconds, not after the
+    ones before it were rendered).
+
+    Collisions with dynamic objects are checked where the animation stands: the first kind
+    at the Simulator's current frame, each later one at frame ``frames``, where flying the
+    trajectory before it leaves the Simulator. That is what planning each one right before
+    it was flown did (until 2026-11-23), kept so the outputs are unchanged. ``sim`` is put
+    back at its frame."""
+    first, planned = sim.frame, []
+    try:
+        for k, kind in enumerate(kinds):
+            if k == 1:
+                sim.set_frame(frames)
+            planned.append((kind, plan_trajectory(kind, sim, sim.spawn_points, start, seed, frames, fps)))
+    finally:
+        if sim.frame != first:
+            sim.set_frame(first)
+    return planned

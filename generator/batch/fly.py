@@ -89,8 +89,8 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, o
 
 
 def fly_scene(sim, trajectories, folder: Path, seed: int, plan, cfg, on_frame=None) -> tuple[dict, int]:
-    """Fly each ``(kind, trajectory)`` of ``trajectories`` into ``folder/kind`` (an iterator
-    plans each one just before it is flown), then write the scene's ground truth and
+    """Fly each ``(kind, trajectory)`` of ``trajectories`` into ``folder/kind`` (all planned
+    before the first is flown: config.plan_trajectories), then write the scene's ground truth and
     ``labels.json`` into ``folder``. Returns ({kind: {"frames", "final_coverage"}}, visible
     point observations)."""
     import json

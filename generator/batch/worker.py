@@ -31,7 +31,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
 
     from .. import Simulator
     from ..scene import build_site, plan_site, site_params
-    from .config import RunConfig, check_point_budget, plan_trajectory
+    from .config import RunConfig, check_point_budget, plan_trajectories
 
     cfg = RunConfig.from_dict(config).validated()
     if cfg.phases > 1:  # a timeline of the site: phase_K/ folders and changes.h5 (docs/phases.md)
@@ -45,12 +45,12 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     check_point_budget(cfg, sim.num_points)  # before any rendering
     sim.configure_render(resolution=cfg.resolution, device=cfg.device)
     start = sim.respawn_camera()
+    # every trajectory planned before the first frame is rendered: one that cannot be planned
+    # (too many frames for the site: docs/trajectories.md) fails the seed in seconds
+    planned = plan_trajectories(sim, cfg.trajectories, start, seed, cfg.frames, fps=10.0)
     plan = plan_site(seed, site_params(cfg.scene_preset, frames=max(250, cfg.frames)))
     emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
-    fps = 10.0
     summary = {"trajectories": {}, "render_device": sim.render_device}
-    planned = ((kind, plan_trajectory(kind, sim, sim.spawn_points, start, seed, cfg.frames, fps))
-               for kind in cfg.trajectories)  # each planned right before it is flown
     summary["trajectories"], tracks = fly_scene(sim, planned, folder, seed, plan, cfg, lambda: emit(event="frame"))
     summary |= {"frames": cfg.frames * len(cfg.trajectories), "points": sim.num_points, "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
