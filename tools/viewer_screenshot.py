@@ -4,7 +4,9 @@ Serves the recording with ``rerun --web-viewer`` on 127.0.0.1, opens it in headl
 (software WebGL: SwiftShader), waits for the viewer to load and render, optionally moves the
 time cursor (by pressing keys), and saves a PNG through the DevTools protocol (a minimal
 WebSocket client, standard library only). Nothing leaves the machine: both servers listen on
-127.0.0.1 and Chromium runs with its background networking off.
+127.0.0.1 and Chromium runs with its background networking off. Both run in their own process
+group, stopped as a whole at the end (the ``rerun`` wrapper's viewer binary included); a port
+already in use is refused (exit 2) rather than screenshotting whatever serves there.
 
 Usage: .venv/bin/python tools/viewer_screenshot.py seed0.rrd docs/images/viewer_seed0.png
        [--size 1600x1000] [--wait 60] [--keys ArrowRight*20]
@@ -102,6 +104,52 @@ def press(tab: DevTools, key: str, times: int) -> None:
         time.sleep(0.2)
 
 
+def port_taken(port: int) -> bool:
+    """Whether something listens on 127.0.0.1:``port`` (or on every interface at that port)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # a closed connection in TIME_WAIT is not a listener
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError:
+            return True
+    return False
+
+
+def start(command: list[str]) -> subprocess.Popen:
+    """``command`` in its own process group (session), so that stopping it stops what it starts
+    (``.venv/bin/rerun`` is a Python wrapper that runs the ``rerun_cli/rerun`` binary)."""
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def stop(proc: subprocess.Popen, seconds: float = 20) -> None:
+    """SIGTERM to ``proc``'s whole process group, SIGKILL to what is left after ``seconds``."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except ProcessLookupError:
+        pass
+    try:
+        proc.wait(timeout=seconds)
+    except subprocess.TimeoutExpired:
+        pass
+    end = time.time() + seconds
+    while time.time() < end:  # the group outlives its leader while a child still runs
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.2)
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait()
+
+
+def fail(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("rrd", type=Path)
@@ -114,26 +162,32 @@ def main() -> None:
     p.add_argument("--debug-port", type=int, default=9222)
     args = p.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
+    if not args.rrd.is_file():
+        fail(f"{args.rrd}: no such file; write one with python -m datasets.view")
+    for option, port in (("--web-port", args.web_port), ("--grpc-port", args.grpc_port),
+                         ("--debug-port", args.debug_port)):
+        if port_taken(port):  # else the page could show what an older viewer still serves there
+            fail(f"{option} {port}: 127.0.0.1:{port} is already in use (a viewer or browser left running?); "
+                 f"stop it, or choose another {option}")
     rerun = Path(sys.executable).with_name("rerun")
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
-        sys.exit("error: no chromium here; apt-get install chromium")
-    procs = []
+        fail("no chromium here; apt-get install chromium")
+    procs, profile = [], None
     # a SIGTERM (e.g. from `timeout`) must still stop the viewer and the browser below
     signal.signal(signal.SIGTERM, lambda *_: sys.exit("error: terminated"))
     try:
-        procs.append(subprocess.Popen([str(rerun), "--web-viewer", "--bind", "127.0.0.1", "--web-viewer-port",
-                                       str(args.web_port), "--port", str(args.grpc_port), str(args.rrd)],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(start([str(rerun), "--web-viewer", "--bind", "127.0.0.1", "--web-viewer-port",
+                            str(args.web_port), "--port", str(args.grpc_port), str(args.rrd)]))
         wait_for(f"http://127.0.0.1:{args.web_port}/", 30)
         url = (f"http://127.0.0.1:{args.web_port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{args.grpc_port}%2Fproxy")
         profile = tempfile.mkdtemp(prefix="chromium-")
-        procs.append(subprocess.Popen([chromium, "--headless", "--no-sandbox", "--disable-quic", "--no-first-run",
-                                       "--disable-background-networking", "--disable-component-update",
-                                       "--disable-sync", f"--user-data-dir={profile}", "--use-angle=swiftshader",
-                                       "--enable-unsafe-swiftshader", f"--window-size={width},{height}",
-                                       f"--remote-debugging-port={args.debug_port}", "--remote-allow-origins=*",
-                                       "about:blank"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(start([chromium, "--headless", "--no-sandbox", "--disable-quic", "--no-first-run",
+                            "--disable-background-networking", "--disable-component-update",
+                            "--disable-sync", f"--user-data-dir={profile}", "--use-angle=swiftshader",
+                            "--enable-unsafe-swiftshader", f"--window-size={width},{height}",
+                            f"--remote-debugging-port={args.debug_port}", "--remote-allow-origins=*",
+                            "about:blank"]))
         wait_for(f"http://127.0.0.1:{args.debug_port}/json/version", 30)
         pages = json.load(urllib.request.urlopen(f"http://127.0.0.1:{args.debug_port}/json/list"))
         tab = DevTools(next(pg for pg in pages if pg["type"] == "page")["webSocketDebuggerUrl"])
@@ -150,11 +204,9 @@ def main() -> None:
         print(args.png)
     finally:
         for proc in reversed(procs):
-            proc.terminate()
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+            stop(proc)
+        if profile is not None:
+            shutil.rmtree(profile, ignore_errors=True)
 
 
 if __name__ == "__main__":
