@@ -12,6 +12,7 @@ import scenes
 from generator import Simulator
 from generator.envs import EXPLORATION_ID
 from generator.envs.exploration import ExplorationEnv
+from generator.envs.scenes import site_code_key
 from generator.geometry.camera import pixel_rays
 
 W, H = 48, 32
@@ -107,6 +108,46 @@ def test_check_env_passes(rooms, action_space):
     assert env.render().shape == (16, 48, 3)
 
 
+def test_check_env_on_a_made_env_then_the_env_still_works(rooms):
+    """check_env makes more environments from the spec (they replace the scene in Blender):
+    the checked environment reloads its own scene at the next reset()."""
+    env = gym.make(EXPLORATION_ID, blend_files=[str(rooms[0])], resolution=(24, 16), points_density=20.0)
+    check_env(env.unwrapped, skip_render_check=False)
+    check_env(env)
+    obs, info = env.reset(seed=0)
+    obs, reward, _, _, info = env.step(3)
+    assert info["steps"] == 1 and reward > 0 and env.observation_space.contains(obs)
+    env.close()
+
+
+def test_two_envs_in_one_process_reload_at_reset_and_refuse_to_step(rooms):
+    def episode(env, seed):
+        obs, _ = env.reset(seed=seed)
+        out = [obs]
+        for a in (0, 3, 2):
+            out.append(env.step(a))
+        return out
+
+    a = make(rooms[:1])
+    first = episode(a, 5)
+    b = make(rooms[1:])
+    b.reset(seed=0)  # replaces a's scene in Blender
+    with pytest.raises(RuntimeError, match=r"replaced this environment's scene.*call reset\(\).*one environment "
+                                           r"per process.*make_vec") as err:
+        a.step(0)
+    assert "\n" not in str(err.value)
+    again = episode(a, 5)  # reloads its own room: the same episode as a fresh environment's
+    fresh = episode(make(rooms[:1]), 5)
+    for other in (again, fresh):
+        assert all(np.array_equal(first[0][k], other[0][k]) for k in first[0])
+        for (o1, r1, *_, i1), (o2, r2, *_, i2) in zip(first[1:], other[1:]):
+            assert r1 == r2 and i1 == i2 and all(np.array_equal(o1[k], o2[k]) for k in o1)
+    assert str(rooms[0]) == again[-1][-1]["scene"]
+    with pytest.raises(RuntimeError, match="replaced"):
+        b.step(0)
+    assert b.reset(seed=0)[1]["scene"] == str(rooms[1])
+
+
 def test_same_seed_same_episode_and_rewards_sum_to_coverage(rooms):
     env = make(rooms, max_steps=12, coverage="all")
     actions = np.random.default_rng(7).integers(0, 5, 12)
@@ -166,7 +207,7 @@ def test_move_into_a_wall_keeps_the_pose_and_sets_collided(rooms, action_space):
         3.0 if action_space == "discrete" else 0.9)
 
 
-def test_procedural_site_is_built_once_and_cached(tmp_path):
+def test_procedural_site_is_built_once_cached_and_rebuilt_after_a_code_change(tmp_path):
     kw = dict(seeds=[4], scene_preset="small", cache_dir=tmp_path, resolution=(16, 16), points_density=0.3,
               max_steps=3)
     env = gym.make(EXPLORATION_ID, **kw)
@@ -174,13 +215,63 @@ def test_procedural_site_is_built_once_and_cached(tmp_path):
     folder = tmp_path / "small_seed4"
     meta = json.loads((folder / "scene.json").read_text())
     assert np.allclose(obs["pose"], np.array(meta["start"]))
-    assert info["scene"] == "small_seed4"
+    assert info["scene"] == "small_seed4" and meta["code_key"] == site_code_key()
     stamp = (folder / "site.blend").stat().st_mtime_ns
     env.close()
     env = gym.make(EXPLORATION_ID, **kw)
     obs2, _ = env.reset(seed=1)
     assert (folder / "site.blend").stat().st_mtime_ns == stamp and np.array_equal(obs2["depth"], obs["depth"])
     env.close()
+    # a site built by other code (another key, or the format before keys) is rebuilt in place
+    for stale in (meta | {"code_key": "0" * 64}, {k: v for k, v in meta.items() if k != "code_key"} | {"format": 1}):
+        (folder / "scene.json").write_text(json.dumps(stale))
+        env = gym.make(EXPLORATION_ID, **kw)
+        obs3, _ = env.reset(seed=1)
+        env.close()
+        assert (folder / "site.blend").stat().st_mtime_ns != stamp
+        assert json.loads((folder / "scene.json").read_text()) == meta  # the same site again (deterministic)
+        assert np.array_equal(obs3["depth"], obs["depth"])
+        stamp = (folder / "site.blend").stat().st_mtime_ns
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".lock")) == ["small_seed4"]
+
+
+def test_site_code_key_follows_the_site_generator_sources(tmp_path):
+    import shutil
+
+    from generator.envs.scenes import PACKAGE_ROOT, SITE_SOURCES
+
+    for rel in SITE_SOURCES:
+        src = PACKAGE_ROOT / rel
+        if src.is_dir():
+            shutil.copytree(src, tmp_path / rel, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(src, tmp_path / rel)
+    assert site_code_key(tmp_path) == site_code_key()
+    (tmp_path / "scene" / "README.txt").write_text("not code")
+    assert site_code_key(tmp_path) == site_code_key()
+    site = tmp_path / "scene" / "site.py"
+    site.write_text(site.read_text() + "\n")
+    assert site_code_key(tmp_path) != site_code_key()
+    site.unlink()
+    with pytest.raises(FileNotFoundError, match="site_code_key"):
+        site_code_key(tmp_path / "nowhere")
+
+
+def test_make_vec_default_runs_one_process_per_env(rooms):
+    kw = {"blend_files": [str(rooms[0])], "resolution": (24, 16), "points_density": 20.0, "max_steps": 3}
+    envs = gym.make_vec(EXPLORATION_ID, num_envs=2, **kw)  # no vectorization_mode: the id's vector entry point
+    try:
+        assert isinstance(envs, gym.vector.AsyncVectorEnv)
+        obs, infos = envs.reset(seed=[3, 3])
+        assert obs["depth"].shape == (2, 16, 24) and np.array_equal(obs["depth"][0], obs["depth"][1])
+        obs, rewards, term, trunc, infos = envs.step(np.array([3, 4]))
+        assert not np.array_equal(obs["pose"][0], obs["pose"][1]) and np.all(infos["steps"] == 1)
+        assert np.all(rewards > 0)
+    finally:
+        envs.close()
+    with pytest.raises(ValueError, match="^rgb must be True or False"):
+        gym.make_vec(EXPLORATION_ID, num_envs=2, **kw, rgb="False")  # checked here, before any worker starts
 
 
 def test_async_vector_env_steps_and_resets(rooms):
@@ -240,7 +331,7 @@ def test_env_and_raycam_modules_do_not_import_blender():
     import sys
 
     code = ("import sys, gymnasium, generator.envs, generator.envs.exploration, generator.envs.policies, "
-            "generator.envs.actions, generator.envs.scenes, generator.geometry.raycam\n"
+            "generator.envs.actions, generator.envs.scenes, generator.envs.vector, generator.geometry.raycam\n"
             "assert 'bpy' not in sys.modules, 'bpy was imported'\n"
             "import bpy\n"
             "print('ok')")
@@ -251,10 +342,24 @@ def test_env_and_raycam_modules_do_not_import_blender():
 
 
 def test_bad_arguments_name_the_argument(tmp_path):
+    file = tmp_path / "a_file"
+    file.write_text("")
     for kw, words in ((dict(seeds=[0], scene_preset="huge"), "scene_preset"), (dict(), "no scenes"),
                       (dict(seeds=[0], resolution=(0, 3)), "resolution"), (dict(seeds=[0], action_space="x"), "action_space"),
                       (dict(seeds=5), "lists"), (dict(seeds=[0, -1]), r"seeds\[1\] must be a non-negative"),
                       (dict(seeds=[0], step=-1), "step"), (dict(seeds=[0], max_steps=0), "max_steps"),
-                      (dict(blend_files=[tmp_path / "missing.blend"]), "missing.blend")):
-        with pytest.raises((ValueError, FileNotFoundError), match=words):
+                      (dict(blend_files=[tmp_path / "missing.blend"]), "missing.blend"),
+                      (dict(seeds=[0], rgb="False"), "^rgb must be True or False"), (dict(seeds=[0], rgb=1), "^rgb"),
+                      (dict(seeds=[0], render_preset="fast"), "^render_preset must be one of 'preview'"),
+                      (dict(seeds=[0], collision_penalty=-1), "^collision_penalty"),
+                      (dict(seeds=[0], collision_penalty=math.inf), "^collision_penalty"),
+                      (dict(seeds=[0], cache_dir=5), "^cache_dir"), (dict(seeds=[0], cache_dir=file), "^cache_dir"),
+                      (dict(seeds="01"), "lists"), (dict(blend_files=[3]), r"^blend_files\[0\]"),
+                      (dict(seeds=[0], coverage="seen"), "^coverage"), (dict(seeds=[0], start="x"), "^start"),
+                      (dict(seeds=[0], angle=200), "^angle"), (dict(seeds=[0], max_depth=0), "^max_depth"),
+                      (dict(seeds=[0], points_density=math.inf), "^points_density"),
+                      (dict(seeds=[0], render_mode="human"), "^render_mode")):
+        with pytest.raises((ValueError, FileNotFoundError), match=words) as err:
             ExplorationEnv(**kw)
+        assert "\n" not in str(err.value)
+    assert ExplorationEnv(seeds=[0], rgb=np.bool_(True), render_preset="default").rgb is True

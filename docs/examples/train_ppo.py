@@ -5,8 +5,8 @@ Not a project dependency and not run in CI:
     .venv/bin/pip install "stable-baselines3>=2.4"
     .venv/bin/python docs/examples/train_ppo.py --seeds 0 1 2 --envs 2 --timesteps 200000
 
-One environment per process (Blender holds one scene per process), in an
-``AsyncVectorEnv`` started with 'spawn'. The observation is the depth (clipped to
+One environment per process (Blender holds one scene per process), in SB3's
+``SubprocVecEnv`` started with 'spawn'. The observation is the depth (clipped to
 ``max_depth`` and scaled to [0, 1], +inf = far) and the label map as two image channels,
 plus the coverage so far, fed to SB3's ``MultiInputPolicy``.
 """

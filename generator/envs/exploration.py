@@ -2,8 +2,9 @@
 
 Observations come from the geometric camera (``Simulator.render(engine="raycast")``, one
 ray per pixel centre, no Blender render); the reward is the paper's coverage gain x 100.
-Blender holds one scene per process: one environment per process (use
-``gymnasium.vector.AsyncVectorEnv`` for several). See docs/envs.md.
+Blender holds one scene per process: one environment per process (``gymnasium.make_vec``
+runs each in its own process; see :mod:`.vector`). An environment whose scene another
+Simulator replaced reloads it at ``reset()`` and refuses ``step()``. See docs/envs.md.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..checks import check_number, check_seed
+from ..render_settings import PRESETS as RENDER_PRESETS
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
@@ -69,17 +71,22 @@ class ExplorationEnv(gym.Env):
         self.max_steps = _count("max_steps", max_steps)
         self.max_depth = _positive("max_depth", max_depth, allow_inf=True)
         self.points_density = _positive("points_density", points_density)
-        self.collision_penalty = check_number("collision_penalty", collision_penalty)
+        self.collision_penalty = check_number("collision_penalty", collision_penalty, low=0)
+        if math.isinf(self.collision_penalty):
+            raise ValueError(f"collision_penalty must be a finite number >= 0, got {collision_penalty!r}")
         self.coverage_set = _choice("coverage", coverage, COVERAGE_SETS)
         self.start_rule = _choice("start", start, STARTS)
-        self.rgb, self.render_preset = bool(rgb), render_preset
+        if not isinstance(rgb, (bool, np.bool_)):
+            raise ValueError(f"rgb must be True or False, got {rgb!r}")
+        self.rgb = bool(rgb)
+        self.render_preset = _choice("render_preset", render_preset, tuple(RENDER_PRESETS))
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
         from ..scene.site import PRESETS
 
         self.scene_preset = _choice("scene_preset", scene_preset, tuple(PRESETS))
-        self.cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+        self.cache_dir = _cache_dir(cache_dir)
         self._sources = _sources(seeds, blend_files)
         self._scenes: dict[int, SceneSpec] = {}
 
@@ -100,6 +107,7 @@ class ExplorationEnv(gym.Env):
         self.observation_space = spaces.Dict(obs)
 
         self.sim = None  # the Simulator of the current scene
+        self._generation = -1  # Blender's file generation when self.sim was loaded
         self.scene: SceneSpec | None = None
         self._subset: np.ndarray | None = None  # points the coverage counts (None: all)
         self._n_subset = 1
@@ -122,11 +130,12 @@ class ExplorationEnv(gym.Env):
 
     def _load(self, index: int) -> None:
         spec = self.scene_spec(index)
-        if self.sim is not None and self.scene is spec:
+        if self.scene is spec and self.scene_is_loaded:
             return
         Simulator = _simulator_class()
         self.sim = None  # Blender holds one scene: drop the old Simulator first
         sim = Simulator(spec.blend, points_density=self.points_density, max_pcl_depth=self.max_depth, seed=spec.seed)
+        self._generation = _blender_generation()
         sim.configure_render(self.render_preset if self.rgb else None, resolution=(self.width, self.height))
         if len(sim.labels) > MAX_LABEL_ID + 1:
             raise ValueError(f"{spec.blend} has {len(sim.labels)} labels; the label observation holds at most "
@@ -141,6 +150,12 @@ class ExplorationEnv(gym.Env):
         else:
             self._subset, self._n_subset = None, max(sim.num_points, 1)
         self.sim, self.scene = sim, spec
+
+    @property
+    def scene_is_loaded(self) -> bool:
+        """False before the first ``reset()``, after ``close()``, and once another Simulator
+        (another environment, in this process) has replaced this one's scene in Blender."""
+        return self.sim is not None and self._generation == _blender_generation()
 
     def _start_pose(self) -> np.ndarray:
         spec, sim = self.scene, self.sim
@@ -170,6 +185,11 @@ class ExplorationEnv(gym.Env):
     def step(self, action):
         if self.sim is None:
             raise RuntimeError("call reset() before step()")
+        if not self.scene_is_loaded:
+            raise RuntimeError(
+                "another environment or Simulator in this process has replaced this environment's scene (Blender "
+                "holds one scene per process): call reset() to reload it, and run one environment per process, e.g. "
+                "gymnasium.make_vec(..., num_envs=N) or vectorization_mode='async' (gymnasium.vector.AsyncVectorEnv)")
         collided = self._act(action)
         self._steps += 1
         gain = self._observe_points()
@@ -232,6 +252,13 @@ class ExplorationEnv(gym.Env):
                 "scene": self.scene.name}
 
 
+def _blender_generation() -> int:
+    """Counter of .blend files loaded in this process (Blender is already imported)."""
+    from ..blender import session
+
+    return session.generation()
+
+
 def _simulator_class():
     """``generator.Simulator``, importable in a process started by multiprocessing's spawn or
     forkserver (``AsyncVectorEnv`` workers): such a process inherits its parent's sys.path,
@@ -265,6 +292,17 @@ def _choice(name: str, value, choices) -> str:
     return value
 
 
+def _cache_dir(value) -> Path:
+    if value is None:
+        return default_cache_dir()
+    if not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise ValueError(f"cache_dir must be a folder path (str or os.PathLike) or None, got {value!r}")
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"cache_dir: {path} exists and is not a folder; pass a folder for the built sites")
+    return path
+
+
 def _resolution(value) -> tuple[int, int]:
     try:
         w, h = value
@@ -284,12 +322,14 @@ def _discrete(action) -> int:
 
 
 def _sources(seeds, blend_files) -> list[tuple[str, object]]:
-    if isinstance(seeds, (int, np.integer)) or isinstance(blend_files, (str, os.PathLike)):
+    if isinstance(seeds, (int, np.integer, str, bytes)) or isinstance(blend_files, (str, bytes, os.PathLike)):
         raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend'])")
     out: list[tuple[str, object]] = []
     for i, s in enumerate(seeds):
         out.append(("seed", check_seed(f"seeds[{i}]", s)))
-    for p in blend_files:
+    for i, p in enumerate(blend_files):
+        if not isinstance(p, (str, os.PathLike)):
+            raise ValueError(f"blend_files[{i}] must be a path (str or os.PathLike), got {p!r}")
         if not Path(p).is_file():
             raise FileNotFoundError(f"blend_files: {p} is not a file; pass paths of existing .blend files")
         out.append(("blend", Path(p)))

@@ -6,12 +6,16 @@ A procedural site of ``(preset, seed)`` is built by :func:`generator.scene.build
 for it; a lock file keeps two processes (e.g. the workers of an ``AsyncVectorEnv``) from
 building it twice, and the folder appears only complete (built under a temporary name,
 then renamed). ``scene.json`` beside ``site.blend`` holds the start pose and the bounds
-(the site's camera spawn volume), so later episodes need no planning.
+(the site's camera spawn volume), so later episodes need no planning, and the
+:func:`site_code_key` it was built with: a folder built by other code (another version of
+the site generator, of Blender or of numpy) is rebuilt in place rather than reused.
 """
 
 from __future__ import annotations
 
 import fcntl
+import hashlib
+import importlib.metadata
 import json
 import os
 import shutil
@@ -22,7 +26,14 @@ from pathlib import Path
 import numpy as np
 
 SCENE_FILE = "scene.json"  # written next to a cached site.blend; read by load_site_scene
-SCENE_FORMAT = 1
+SCENE_FORMAT = 2
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]  # generator/
+# the sources whose change can change a built site, its start pose or its bounds (relative to
+# generator/; a folder means its .py files), and the packages that build it
+SITE_SOURCES = ("scene", "blender/build.py", "blender/materials.py", "blender/session.py", "blender/render.py",
+                "render_settings.py", "geometry/seeding.py", "geometry/camera.py", "baselines/start_pose.py",
+                "checks.py", "envs/scenes.py")
+SITE_PACKAGES = ("bpy", "numpy")
 
 
 @dataclass(frozen=True)
@@ -58,12 +69,42 @@ def blend_scene(path: str | os.PathLike) -> SceneSpec:
     return SceneSpec(name=str(p), blend=p)
 
 
+def site_code_key(root: Path = PACKAGE_ROOT) -> str:
+    """SHA-256 (hex) of the site generator's source files under ``root`` (SITE_SOURCES: path
+    and bytes of each) and of the versions of SITE_PACKAGES: it changes whenever the code
+    that builds a cached site may have changed."""
+    h = hashlib.sha256()
+    for rel in SITE_SOURCES:
+        path = root / rel
+        files = sorted(path.glob("*.py")) if path.is_dir() else [path]
+        if not files or not all(f.is_file() for f in files):
+            raise FileNotFoundError(f"site_code_key: {path} is missing (SITE_SOURCES in {__file__} lists it)")
+        for f in files:
+            data = f.read_bytes()
+            h.update(f"{f.relative_to(root).as_posix()}\0{len(data)}\0".encode())
+            h.update(data)
+    for name in SITE_PACKAGES:
+        h.update(f"{name}=={importlib.metadata.version(name)}\0".encode())
+    return h.hexdigest()
+
+
 def site_scene(seed: int, preset: str, cache_dir: str | os.PathLike) -> SceneSpec:
-    """The procedural site of ``seed`` (built and cached on first use; imports bpy then)."""
+    """The procedural site of ``seed`` (built and cached on first use, rebuilt when
+    :func:`site_code_key` has changed since; imports bpy then)."""
     folder = Path(cache_dir) / f"{preset}_seed{seed}"
-    if not (folder / SCENE_FILE).is_file():
-        _build_locked(seed, preset, folder)
+    key = site_code_key()
+    if not _is_current(folder, key):
+        _build_locked(seed, preset, folder, key)
     return load_site_scene(folder)
+
+
+def _is_current(folder: Path, key: str) -> bool:
+    """True if ``folder`` holds a complete site built by code of ``key``."""
+    try:
+        meta = json.loads((folder / SCENE_FILE).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("format") == SCENE_FORMAT and meta.get("code_key") == key
 
 
 def load_site_scene(folder: Path) -> SceneSpec:
@@ -82,31 +123,33 @@ def load_site_scene(folder: Path) -> SceneSpec:
                      seed=seed)
 
 
-def _build_locked(seed: int, preset: str, folder: Path) -> None:
+def _build_locked(seed: int, preset: str, folder: Path, key: str) -> None:
     folder.parent.mkdir(parents=True, exist_ok=True)
     with open(folder.parent / f".{folder.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        if (folder / SCENE_FILE).is_file():
+        if _is_current(folder, key):
             return  # another process built it while we waited
         tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))
+        old = folder.parent / f"{tmp.name}-old"
         try:
-            _build(seed, preset, tmp)
-            if folder.exists():
-                shutil.rmtree(folder)  # an incomplete folder left by a killed build
+            _build(seed, preset, tmp, key)
+            if folder.exists():  # a stale site, or an incomplete folder left by a killed build
+                os.rename(folder, old)
             os.rename(tmp, folder)
         finally:
-            if tmp.exists():
-                shutil.rmtree(tmp, ignore_errors=True)
+            for leftover in (tmp, old):
+                if leftover.exists():
+                    shutil.rmtree(leftover, ignore_errors=True)
 
 
-def _build(seed: int, preset: str, out: Path) -> None:
+def _build(seed: int, preset: str, out: Path, key: str) -> None:
     from ..baselines.start_pose import site_start
     from ..scene import build_site, plan_site, site_params
 
     plan = plan_site(seed, site_params(preset))
     start, (lo, hi) = site_start(plan)
     build_site(seed, preset, out, preview=False)
-    meta = {"format": SCENE_FORMAT, "seed": seed, "preset": preset, "start": start.tolist(),
+    meta = {"format": SCENE_FORMAT, "code_key": key, "seed": seed, "preset": preset, "start": start.tolist(),
             "bounds": [lo.tolist(), hi.tolist()],
             "start_rule": "level camera at the site's entrance, lowest spawn height, looking in (baselines)",
             "bounds_rule": "the site plan's camera spawn volume"}
