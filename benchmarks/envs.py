@@ -13,6 +13,7 @@ few steps. The site is built once into --cache-dir (not timed).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -69,6 +70,7 @@ def main() -> None:
 
     from generator.envs import EXPLORATION_ID
 
+    print(f"load average before: {os.getloadavg()[0]:.2f} (1 min)")
     actions = np.random.default_rng(0).integers(0, 5, args.steps)
     kw = dict(seeds=[args.seed], scene_preset=args.preset, cache_dir=args.cache_dir, points_density=5.0,
               max_depth=20.0, resolution=(128, 128), max_steps=500)
@@ -88,8 +90,11 @@ def main() -> None:
     cyc = run(env, actions[: args.cycles_steps])
     env.close()
     print(f"reference (Cycles render() per step, preview, 128x128): {len(cyc)} steps, "
-          f"{1 / statistics.median(cyc):.2f} steps/s (median {statistics.median(cyc):.2f} s a step)")
-    print(f"ratio: {statistics.median(cyc) / statistics.median(geo):.0f}x")
+          f"{1 / statistics.median(cyc):.2f} steps/s (median {statistics.median(cyc):.2f} s a step), "
+          f"{len(cyc) / sum(cyc):.2f} steps/s (mean)")
+    print(f"ratio of medians: {statistics.median(cyc) / statistics.median(geo):.0f}x; "
+          f"ratio of means: {sum(cyc) / len(cyc) / (sum(geo) / len(geo)):.0f}x")
+    print(f"load average after: {os.getloadavg()[0]:.2f} (1 min)")
 
 
 if __name__ == "__main__":
