@@ -285,3 +285,31 @@ def test_png_readers_refuse_pngs_of_another_kind(seed_folder, tmp_path):
     shutil.copy(orbit / "rgb_000001.png", copy / "orbit" / "label_000001.png")
     with pytest.raises(DatasetError, match="label_000001.png: a RGB PNG, not the 16-bit grey id image"):
         Scene(copy)["orbit"].read(1, ["label"])
+
+
+def test_manifest_hashes_on_every_core_keep_the_order_and_find_each_damage(tmp_path):
+    """write_manifest and check_files hash files in parallel: each digest is hashlib's of its
+    own file, and the problems come one per damaged file, in the manifest's order."""
+    import hashlib
+
+    from exporters.manifest import check_files, load_manifest, sha256_many, write_manifest
+
+    folder = tmp_path / "seed_000001"
+    (folder / "a").mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    sizes = [0, 1, 4095, 1 << 20, 3 << 20, 17]
+    for k, n in enumerate(sizes):
+        (folder / "a" / f"f{k}.bin").write_bytes(rng.integers(0, 256, n, dtype=np.uint8).tobytes())
+    paths = sorted((folder / "a").iterdir())
+    assert sha256_many(paths) == [hashlib.sha256(p.read_bytes()).hexdigest() for p in paths]
+    write_manifest(folder, {"format_version": "x", "seed": 1, "config": {}, "summary": {}})
+    manifest = load_manifest(folder)
+    assert check_files(folder, manifest) == []
+    for k in (4, 1):  # damage two files, in reverse order of the manifest
+        data = bytearray((folder / "a" / f"f{k}.bin").read_bytes())
+        data[0] ^= 1
+        (folder / "a" / f"f{k}.bin").write_bytes(bytes(data))
+    (folder / "a" / "f5.bin").unlink()
+    assert check_files(folder, manifest) == ["a/f1.bin: contents changed (sha256 differs from the manifest)",
+                                             "a/f4.bin: contents changed (sha256 differs from the manifest)",
+                                             "a/f5.bin: missing"]
