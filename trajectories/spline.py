@@ -9,6 +9,7 @@ import numpy as np
 
 from generator.geometry.camera import heading_pose
 
+from . import checks
 from .base import MotionChecker, Trajectory, TrajectoryError, timestamps
 
 
@@ -29,9 +30,14 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
     """``frames`` poses flown at ``speed`` m/s through ``waypoints`` random free points
     inside ``bounds`` ((xmin, ymin, zmin), (xmax, ymax, zmax)); retried until every leg
     between consecutive poses is collision-free."""
-    lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
-    if frames < 2 or speed <= 0 or np.any(hi <= lo):
-        raise ValueError("a fly-through needs frames >= 2, speed > 0 and non-empty bounds")
+    lo, hi = checks.box("bounds", bounds, 3)
+    checks.count("frames", frames, 2)
+    checks.generator("rng", rng)
+    checks.number("speed", speed, 0.0, open_low=True)
+    checks.integer("waypoints", waypoints, 2, checks.MAX_WAYPOINTS)
+    checks.pitch("pitch_deg", pitch_deg)
+    checks.fps(fps)
+    checks.integer("attempts", attempts, 1, checks.MAX_ATTEMPTS)
     length = speed * (frames - 1) / fps
     spacing = length / waypoints * 0.5  # consecutive waypoints at least this far apart
     if spacing >= float(np.linalg.norm(hi - lo)):

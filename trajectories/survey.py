@@ -9,6 +9,7 @@ import numpy as np
 
 from generator.geometry.camera import heading_pose, look_at
 
+from . import checks
 from .base import MotionChecker, Trajectory, TrajectoryError, timestamps
 
 
@@ -31,9 +32,15 @@ def orbit(checker: MotionChecker, center, radius: float, altitude: float, frames
           look_at_height: float = 0.0, turns: float = 1.0, fps: float = 10.0, start_angle: float = 0.0) -> Trajectory:
     """``frames`` poses on a circle of ``radius`` metres at ``altitude`` metres around
     ``center`` (x, y), each looking at the centre at ``look_at_height``."""
-    if frames < 2 or radius <= 0:
-        raise ValueError("an orbit needs at least 2 frames and a positive radius")
-    c = np.asarray(center, dtype=np.float64)[:2]
+    c = checks.vectors("center", center, (2,), "(x, y), two finite numbers of metres")
+    checks.number("radius", radius, 0.0, open_low=True)
+    checks.number("altitude", altitude)
+    checks.count("frames", frames, 2)
+    checks.number("look_at_height", look_at_height)
+    checks.number("turns", turns, -frames / 2, frames / 2, nonzero=True,
+                  valid=f"a nonzero number with |turns| <= frames / 2 = {frames / 2:g} (negative: clockwise)")
+    checks.fps(fps)
+    checks.number("start_angle", start_angle)
     a = start_angle + 2 * math.pi * turns * np.arange(frames) / frames
 
     def make(alt):
@@ -50,9 +57,15 @@ def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spac
     """Back-and-forth passes along x over ``bounds`` ((xmin, ymin), (xmax, ymax)), lines
     ``spacing`` metres apart, at ``altitude``, camera pitched ``pitch_deg`` (negative:
     down) along the direction of flight; ``frames`` poses evenly spaced along the path."""
+    lo, hi = checks.box("bounds", bounds, 2)
+    checks.number("altitude", altitude)
+    checks.count("frames", frames, 2)
+    least = float(hi[1] - lo[1]) / checks.MAX_PASSES
+    checks.number("spacing", spacing, least, valid=f"a number of metres >= {least:g} (at most "
+                  f"{checks.MAX_PASSES:,} passes across the {hi[1] - lo[1]:g} m of the bounds in y)")
+    checks.pitch("pitch_deg", pitch_deg)
+    checks.fps(fps)
     (x0, y0), (x1, y1) = bounds
-    if frames < 2 or spacing <= 0 or x1 <= x0 or y1 <= y0:
-        raise ValueError("a lawnmower survey needs frames >= 2, spacing > 0 and non-empty bounds")
     ys = np.arange(y0, y1 + 1e-9, spacing)
     corners = []
     for k, y in enumerate(ys):

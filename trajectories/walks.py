@@ -17,6 +17,7 @@ import numpy as np
 
 from generator.geometry.camera import translated_along_axis, turned_about_world_z
 
+from . import checks
 from .base import MotionChecker, Trajectory, timestamps
 
 ACTIONS = ("forward", "left", "right", "turn_left", "turn_right")
@@ -47,13 +48,14 @@ def _act(checker: MotionChecker, pose: np.ndarray, action: str, step: float, ang
     return new, False
 
 
-def _check(steps: int, step: float, angle: float) -> None:
-    if not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
-    if not (step > 0 and math.isfinite(step)):
-        raise ValueError(f"step must be a positive distance in metres, got {step!r}")
-    if not (0 < angle < 360):
-        raise ValueError(f"angle must be in (0, 360) degrees, got {angle!r}")
+def _check(start, steps: int, rng, step: float, angle: float, fps: float) -> None:
+    """The parameters the two walks share (ValueError naming the first bad one)."""
+    checks.pose("start", start)
+    checks.count("steps", steps, 1)
+    checks.generator("rng", rng)
+    checks.number("step", step, 0.0, open_low=True, valid="a distance in metres > 0")
+    checks.number("angle", angle, 0.0, 360.0, open_low=True, open_high=True, valid="a number of degrees in (0, 360)")
+    checks.fps(fps)
 
 
 def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.random.Generator,
@@ -61,7 +63,7 @@ def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.r
                 actions: tuple[str, ...] = ACTIONS) -> Trajectory:
     """``steps`` actions drawn uniformly from ``actions`` (default: the five); returns
     steps + 1 poses (start first). Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
-    _check(steps, step, angle)
+    _check(start, steps, rng, step, angle, fps)
     if not actions or any(a not in ACTIONS for a in actions):
         raise ValueError(f"actions must be a non-empty list drawn from {', '.join(ACTIONS)}, got {actions!r}")
     choices = tuple(actions)
@@ -91,9 +93,8 @@ def modified_random_walk(checker: MotionChecker, start: np.ndarray, steps: int, 
     forever: the camera keeps its position and its last drawn heading). ``angle`` is not
     used (the walks share one signature); returns steps + 1 poses (start first).
     """
-    _check(steps, step, angle)
-    if not isinstance(max_draws, (int, np.integer)) or max_draws < 1:
-        raise ValueError(f"max_draws must be a positive integer, got {max_draws!r}")
+    _check(start, steps, rng, step, angle, fps)
+    checks.integer("max_draws", max_draws, 1, checks.MAX_DRAWS)
     poses, actions, draws = [np.array(start, dtype=np.float64)], [], []
     for _ in range(steps):
         pose, n = poses[-1], 0
