@@ -174,6 +174,20 @@ def test_killed_run_resumes(tmp_path):
     assert not list(tmp_path.glob(".seed_*"))  # partial folder and lock files gone
 
 
+def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(tmp_path):
+    """A 240 m fly-through (800 frames) fits nowhere on small seed 3: the seed fails with the
+    planner's one-line error before the orbit, planned and flown first, renders anything
+    (it used to render all 800 orbit frames, then fail)."""
+    r = run(tmp_path, "--seeds", "3", "--frames", "800", "--resolution", "8x6", "--outputs", "rgb", timeout=180)
+    assert r.returncode == 1
+    assert "seed 3: FAILED" in r.stdout and "TrajectoryError: no collision-free fly-through of 240 m" in r.stdout
+    partial = tmp_path / ".seed_000003.partial"
+    assert "TrajectoryError" in (partial / "error.log").read_text()
+    assert (partial / "scene" / "site.blend").is_file()  # the site was built...
+    assert not (partial / "orbit").exists() and not list(partial.rglob("rgb_*.png"))  # ...no frame rendered
+    assert not (tmp_path / "seed_000003").exists()
+
+
 @pytest.mark.parametrize(
     "args,message",
     [

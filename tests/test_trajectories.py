@@ -188,3 +188,62 @@ def test_a_fly_through_too_long_for_its_box_is_refused_at_once(checker):
     (the waypoint draw used to loop forever)."""
     with pytest.raises(TrajectoryError, match="3000 m .* more than the 129 m diagonal of its box: use fewer frames"):
         spline_flythrough(checker, ((-45, -45, 2), (45, 45, 20)), 10_000, np.random.default_rng(0))
+
+
+class _Free:
+    """A MotionChecker with no obstacles: every move is allowed."""
+
+    def can_move(self, a, b):
+        return True
+
+    def is_free(self, p):
+        return True
+
+
+_RNG = np.random.default_rng
+
+
+@pytest.mark.parametrize("call,message", [
+    (lambda c: orbit(c, (0, 0), 10, 10, 8, fps=0), "fps must be a finite number > 0, got 0"),
+    (lambda c: orbit(c, (0, 0), 10, 10, 8, turns=0), "turns must be a nonzero number with |turns| <= frames / 2 = 4"),
+    (lambda c: orbit(c, (0, 0), 10, 10, 8, turns=5), "turns must be a nonzero number"),
+    (lambda c: orbit(c, (0, 0), float("nan"), 10, 8), "radius must be a finite number > 0, got nan"),
+    (lambda c: orbit(c, (0,), 10, 10, 8), "center must be (x, y), two finite numbers of metres, got (0,)"),
+    (lambda c: orbit(c, (0, 0), 10, float("inf"), 8), "altitude must be a finite number, got inf"),
+    (lambda c: orbit(c, (0, 0), 10, 10, 2.5), "frames must be an integer from 2 to 1,000,000, got 2.5"),
+    (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 20, fps=0), "fps must be a finite number > 0"),
+    (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 1e-7), "spacing must be a number of metres >= 0.004 (at most 10,000 passes"),
+    (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 20, pitch_deg=-120), "pitch_deg must be a number of degrees in [-90, 90]"),
+    (lambda c: lawnmower(c, ((0, 0), (0, 40)), 10, 8, 20), "bounds must be (lo, hi), two finite (x, y) points with lo < hi"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), fps=-10), "fps must be a finite number > 0, got -10"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), fps=0), "fps must be a finite number > 0, got 0"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), waypoints=0), "waypoints must be an integer from 2 to 1,000, got 0"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), speed=float("nan")), "speed must be a finite number > 0"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), attempts=0), "attempts must be an integer from 1 to 1,000"),
+    (lambda c: spline_flythrough(c, ((0, 0), (50, 50)), 10, _RNG(0)), "bounds must be (lo, hi), two finite (x, y, z) points"),
+    (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, 0), "rng must be a numpy.random.Generator"),
+    (lambda c: random_walk(c, np.zeros(3), 5, _RNG(0)), "start must be a 4x4 rigid world_from_camera pose (pose must be a 4x4 matrix"),
+    (lambda c: random_walk(c, np.eye(4), 5, _RNG(0), fps=0), "fps must be a finite number > 0, got 0"),
+    (lambda c: random_walk(c, np.eye(4), True, _RNG(0)), "steps must be an integer from 1 to 1,000,000, got True"),
+    (lambda c: modified_random_walk(c, np.eye(4), 5, _RNG(0), max_draws=10**9), "max_draws must be an integer from 1 to 100,000"),
+    (lambda c: modified_random_walk(c, 2 * np.eye(4), 5, _RNG(0)), "start must be a 4x4 rigid world_from_camera pose"),
+])
+def test_bad_planner_parameters_give_one_line_naming_the_parameter_and_its_range(call, message):
+    """Checked up front (trajectories/checks.py): no NaN timestamps, no identical poses, no
+    IndexError or ZeroDivisionError, no endless loop."""
+    with pytest.raises(ValueError) as info:
+        call(_Free())
+    text = str(info.value)
+    assert message in text and "\n" not in text and not isinstance(info.value, TrajectoryError)
+
+
+def test_parameters_at_the_stated_limits_are_accepted():
+    """The edges of the ranges are valid: a clockwise half-turn per frame, the finest lawnmower
+    spacing (10,000 passes), two waypoints, the steepest pitch."""
+    c = _Free()
+    t = orbit(c, (0, 0), 10, 10, 8, turns=-4)
+    assert np.all(np.isfinite(t.timestamps)) and len({tuple(p.round(6)) for p in t.positions}) == 2
+    t = lawnmower(c, ((0, 0), (40, 40)), 10, 50, 40 / 10_000, pitch_deg=-90)
+    assert len(t) == 50 and np.all(np.diff(t.timestamps) > 0)
+    t = spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), waypoints=2, fps=1e-3 * 10_000)
+    assert len(t) == 10 and np.all(np.diff(t.timestamps) > 0) and np.ptp(t.positions, axis=0).max() > 1
