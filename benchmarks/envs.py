@@ -1,6 +1,6 @@
 """Steps per second of ``buildee/Exploration-v0``, one process, geometry only vs Cycles.
 
-    .venv/bin/python benchmarks/envs.py [--seed 0] [--preset medium] [--steps 300] [--cycles-steps 5]
+    .venv/bin/python benchmarks/envs.py [--seed 0] [--preset medium] [--steps 1000] [--cycles-steps 10]
 
 Ours: 128x128 depth + label observations from the geometric camera
 (``Simulator.render(engine="raycast")``) and the coverage reward (visibility of every
@@ -61,8 +61,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--preset", default="medium")
-    p.add_argument("--steps", type=int, default=300)
-    p.add_argument("--cycles-steps", type=int, default=5)
+    p.add_argument("--steps", type=int, default=1000)
+    p.add_argument("--cycles-steps", type=int, default=10)
     p.add_argument("--cache-dir", type=Path, default=Path("/tmp/buildee-bench-sites"))
     args = p.parse_args()
 
