@@ -4,16 +4,19 @@ and the figure-9 classes equal what the seed's files hold (read with the exporte
 
 import math
 import os
+import shutil
+import socket
 import subprocess
 import sys
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from conftest import ROOT
+from conftest import ROOT, run_generator
 from datasets.viewer import subsample_stride, subsampled_count
 from exporters.palette import label_colors
 from exporters.ply import read_ply
@@ -27,8 +30,8 @@ def seed_folder(finished):
     return finished[0] / "seed_000004"
 
 
-def run_module(*args, env=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=ROOT, env=env)
+def run_module(*args, env=None, cwd=ROOT, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=env, **kw)
 
 
 def read_rrd(path) -> dict:
@@ -56,10 +59,23 @@ def column_major(values) -> np.ndarray:
     return np.asarray(values, np.float64).reshape(3, 3).T
 
 
+STRICT = os.environ | {"RERUN_STRICT": "1"}  # anything Rerun cannot log raises instead of warning
+
+
+def view(*args, **kw) -> subprocess.CompletedProcess:
+    """``python -m datasets.view *args`` with Rerun in strict mode."""
+    return run_module("datasets.view", *map(str, args), env=kw.pop("env", STRICT), **kw)
+
+
 @pytest.fixture(scope="module")
-def rrd_path(seed_folder, tmp_path_factory):
+def view_run(seed_folder, tmp_path_factory):
     out = tmp_path_factory.mktemp("view") / "seed4.rrd"
-    r = run_module("datasets.view", str(seed_folder), "--out", str(out), "--max-points", "300")
+    return out, view(seed_folder, "--out", out, "--max-points", 300)
+
+
+@pytest.fixture(scope="module")
+def rrd_path(view_run):
+    out, r = view_run
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stdout.strip() == str(out)
     assert [p.name for p in out.parent.iterdir()] == ["seed4.rrd"]  # no temporary file left beside it
@@ -184,6 +200,7 @@ def test_not_a_seed_folder_is_one_line_and_exit_2(tmp_path):
     (["--out", "{tmp}/missing/x.rrd"], "does not exist"),
     (["--max-points", "0"], "--max-points"),
     (["--spawn"], "no display"),
+    (["--trajectory", "orbit", "--trajectory", "spline", "--trajectory", "orbit"], "more than once"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(seed_folder, tmp_path, args, says):
     args = [a.format(seed=seed_folder, tmp=tmp_path) for a in args]
@@ -203,3 +220,235 @@ def test_evaluation_rrd_inside_the_seed_folder_is_refused(seed_folder, tmp_path)
                    "--rrd", str(seed_folder / "result.rrd"))
     assert r.returncode == 2 and "--rrd" in r.stderr and r.stderr.count("\n") == 1
     assert not (seed_folder / "result.rrd").exists()
+
+
+# ---- what a seed holds and how Rerun shows it ---------------------------------------------------
+
+IMAGES = ("rgb", "rgb_linear", "depth", "label", "instance", "normal", "flow", "backward_flow")
+
+
+def image_pixels(table: pa.Table, t: int) -> np.ndarray:
+    """The (H, W, C) uint8 pixels of an rr.Image logged at frame t."""
+    table = table.sort_by("frame")
+    fmt = table.column("Image:format").to_pylist()[t][0]
+    return np.asarray(table.column("Image:buffer").to_pylist()[t][0], np.uint8).reshape(fmt["height"], fmt["width"], -1)
+
+
+def blueprint_views(path) -> list[dict]:
+    """The default layout's views: class ('2D', '3D', ...), name, origin, contents query."""
+    reader = RrdReader(path)
+    views = defaultdict(dict)
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        batch = chunk.to_record_batch()
+        for key, col in (("class", "ViewBlueprint:class_identifier"), ("name", "ViewBlueprint:display_name"),
+                         ("origin", "ViewBlueprint:space_origin"), ("query", "ViewContents:query")):
+            if col in batch.schema.names:
+                value = batch.column(col).to_pylist()[-1]
+                views[chunk.entity_path.removesuffix("/ViewContents")][key] = value if key == "query" else value[0]
+    return [v for v in views.values() if "class" in v]
+
+
+def test_default_seed_logs_without_rerun_warnings(view_run):
+    _, r = view_run  # RERUN_STRICT=1: a component Rerun cannot show would have raised
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "Warning" not in r.stderr and "Traceback" not in r.stderr
+
+
+def hue_saturation(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """HSV hue (0..1), saturation and value of 8-bit RGB pixels."""
+    c = rgb.astype(np.float64) / 255
+    mx, mn = c.max(-1), c.min(-1)
+    d = np.where(mx > mn, mx - mn, 1)
+    r, g, b = c[..., 0], c[..., 1], c[..., 2]
+    h = np.where(mx == r, (g - b) / d, np.where(mx == g, 2 + (b - r) / d, 4 + (r - g) / d)) / 6 % 1.0
+    return h, np.where(mx > 0, (mx - mn) / np.where(mx > 0, mx, 1), 0), mx
+
+
+def test_flow_is_shown_on_the_colour_wheel(recording, seed_folder):
+    from datasets import Scene
+
+    seq = Scene(seed_folder)["orbit"]
+    coloured = 0
+    for name in ("flow", "backward_flow"):
+        table = recording[f"/world/orbit/camera/{name}"]["temporal"]
+        for t in range(len(seq)):
+            flow = seq[t][name].astype(np.float64)
+            rgb = image_pixels(table, t)
+            assert rgb.shape == flow.shape[:2] + (3,)
+            ok = np.isfinite(flow).all(-1)
+            assert (rgb[~ok] == 0).all()  # no flow: black
+            if not ok.any():
+                continue
+            hue, sat, value = hue_saturation(rgb[ok])
+            assert (value == 1).all()
+            mag = np.hypot(flow[ok][:, 0], flow[ok][:, 1])
+            # saturation = magnitude / the frame's 98th percentile magnitude, clipped to 1
+            np.testing.assert_allclose(sat, np.clip(mag / np.percentile(mag, 98), 0, 1), rtol=0, atol=0.01)
+            # hue = direction in image axes (x right, y down), 0 = +x, counted towards +y
+            direction = np.arctan2(flow[ok][:, 1], flow[ok][:, 0]) / (2 * np.pi) % 1.0
+            strong = sat > 0.3
+            off = np.abs((hue[strong] - direction[strong] + 0.5) % 1.0 - 0.5)
+            assert off.max() < 0.01
+            coloured += int(strong.sum())
+    assert coloured > 100  # the wheel was exercised on real motion
+
+
+def test_only_the_rgb_image_is_drawn_in_3d(rrd_path, recording):
+    views = blueprint_views(rrd_path)
+    (site,) = [v for v in views if v["class"] == "3D"]
+    assert site["origin"] == "world" and "$origin/**" in site["query"]
+    for kind in KINDS:
+        for name in IMAGES:
+            assert f"/world/{kind}/camera/{name}" in recording  # every modality of the default seed is logged
+            assert (f"- $origin/{kind}/camera/{name}" in site["query"]) == (name != "rgb"), name
+
+
+@pytest.fixture(scope="module", params=["rgb", "depth"])
+def partial_seed(request, tmp_path_factory):
+    """A seed made with --outputs leaving most modalities out."""
+    out = tmp_path_factory.mktemp(f"only_{request.param}")
+    r = run_generator(out, "--seeds", "4", "--trajectory", "orbit", "--outputs", request.param)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return request.param, out / "seed_000004"
+
+
+def test_a_seed_with_some_outputs_is_viewed(partial_seed, tmp_path):
+    only, folder = partial_seed
+    out = tmp_path / "partial.rrd"
+    r = view(folder, "--out", out)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rec = read_rrd(out)
+    images = {e.rsplit("/", 1)[1] for e in rec if e.startswith("/world/orbit/camera/")} - {"tracks"}
+    assert images == {only}
+    written = read_tracks(folder / "orbit" / "tracks.h5")
+    frames = list(range(len(written["world_from_camera"])))
+    for entity in ("/world/orbit/camera", f"/world/orbit/camera/{only}", "/world/orbit/camera/tracks",
+                   "/world/orbit/tracks", "/coverage/orbit"):
+        assert sorted(rec[entity]["temporal"].column("frame").to_pylist()) == frames, entity
+    translation = column(rec["/world/orbit/camera"]["temporal"], "Transform3D:translation", "frame")
+    np.testing.assert_allclose(translation, written["world_from_camera"][:, :3, 3], rtol=0, atol=1e-4)
+    xy2d = column(rec["/world/orbit/camera/tracks"]["temporal"], "Points2D:positions", "frame")
+    assert sum(len(v) for v in xy2d) == len(written["xy"])
+    n = len(read_ply(folder / "ground_truth" / "points.ply").vertex["x"])
+    points = rec["/world/ground_truth/points"]["static"].column("Points3D:positions").to_pylist()[0]
+    assert len(points) == subsampled_count(n, 1_000_000)
+    for v in blueprint_views(out):  # the 2D views name only what was logged
+        if v["class"] == "2D":
+            assert {q.removeprefix("$origin/") for q in v["query"]} <= images | {"tracks"}, v
+
+
+@pytest.fixture(scope="module")
+def timeline_seed(tmp_path_factory):
+    out = tmp_path_factory.mktemp("timeline")
+    r = run_generator(out, "--seeds", "5", "--trajectory", "orbit", "--phases", "2", "--outputs", "rgb,depth,instance")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return out / "seed_000005"
+
+
+def test_one_stage_of_a_timeline_is_viewed(timeline_seed, tmp_path):
+    r = view(timeline_seed / "phase_1", cwd=tmp_path, env=STRICT | {"PYTHONPATH": str(ROOT)})  # default --out: here
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip() == "seed_000005_phase_1.rrd"  # the default name says which stage
+    out = tmp_path / "seed_000005_phase_1.rrd"
+    assert [s.recording_id for s in RrdReader(out).recordings()] == ["seed_000005_phase_1"]
+    rec = read_rrd(out)
+    stage = {k: read_ply(timeline_seed / f"phase_{k}" / "ground_truth" / "points.ply").vertex for k in (0, 1)}
+    xyz = {k: np.stack([v[c] for c in "xyz"], 1) for k, v in stage.items()}
+    assert xyz[0].shape != xyz[1].shape or not np.array_equal(xyz[0], xyz[1])  # the stages differ
+    k = subsample_stride(len(xyz[1]), 1_000_000)
+    points = rec["/world/ground_truth/points"]["static"].column("Points3D:positions").to_pylist()[0]
+    np.testing.assert_array_equal(np.asarray(points, np.float32), xyz[1][::k])
+    written = read_tracks(timeline_seed / "phase_1" / "orbit" / "tracks.h5")
+    coverage = column(rec["/coverage/orbit"]["temporal"], "Scalars:scalars", "frame")
+    np.testing.assert_allclose(coverage, written["coverage"], rtol=0, atol=1e-12)
+    xy2d = column(rec["/world/orbit/camera/tracks"]["temporal"], "Points2D:positions", "frame")
+    np.testing.assert_array_equal(np.concatenate([np.asarray(v, np.float32).reshape(-1, 2) for v in xy2d]),
+                                  written["xy"])
+
+
+def test_a_timeline_seed_folder_names_the_stage_to_view(timeline_seed, tmp_path):
+    r = view(timeline_seed, "--out", tmp_path / "x.rrd")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert f"python -m datasets.view {timeline_seed / 'phase_K'} (K = 0 to 1)" in r.stderr
+    assert not (tmp_path / "x.rrd").exists()
+
+
+# ---- --spawn where the virtual environment is not activated ---------------------------------------
+
+NO_X_SERVER = ":87"
+
+
+def without_rerun_on_path() -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("WAYLAND_DISPLAY", "VIRTUAL_ENV")}
+    env |= {"PATH": "/usr/bin:/bin", "DISPLAY": NO_X_SERVER}
+    assert shutil.which("rerun", path=env["PATH"]) is None and not Path(f"/tmp/.X11-unix/X{NO_X_SERVER[1:]}").exists()
+    return env
+
+
+def test_spawn_runs_the_viewer_beside_the_interpreter(seed_folder):
+    r = view(seed_folder, "--spawn", "--trajectory", "orbit", env=without_rerun_on_path(), timeout=180)
+    # the viewer of sys.executable's environment was started (PATH has none); it finds no X server
+    assert "Failed to open connection to X server" in r.stderr
+    viewer = Path(sys.executable).with_name("rerun")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith(f"error: --spawn: the Rerun viewer {viewer} did not take")
+
+
+def test_spawn_without_a_viewer_is_one_line_and_exit_2(seed_folder, tmp_path):
+    venv = tmp_path / "venv"  # an environment with the packages of this one but no rerun executable
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").symlink_to(Path(sys.executable).resolve())
+    (venv / "lib").symlink_to(Path(sys.prefix) / "lib")
+    shutil.copy(Path(sys.prefix) / "pyvenv.cfg", venv / "pyvenv.cfg")
+    r = subprocess.run([str(venv / "bin" / "python"), "-m", "datasets.view", str(seed_folder), "--spawn"],
+                       capture_output=True, text=True, cwd=ROOT, env=without_rerun_on_path())
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "no Rerun viewer" in r.stderr and str(venv / "bin" / "python") in r.stderr
+
+
+# ---- tools/viewer_screenshot.py ---------------------------------------------------------------------
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def listening(port: int) -> bool:
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return True
+    return False
+
+
+def screenshot(rrd, png, *args) -> subprocess.CompletedProcess:
+    command = [sys.executable, str(ROOT / "tools" / "viewer_screenshot.py"), str(rrd), str(png), *map(str, args)]
+    return subprocess.run(command, capture_output=True, text=True, timeout=240)
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None and shutil.which("chromium-browser") is None,
+                    reason="tools/viewer_screenshot.py needs chromium (apt-get install chromium)")
+def test_screenshot_tool_stops_the_viewer_it_started(rrd_path, tmp_path):
+    ports = [free_port() for _ in range(3)]
+    png = tmp_path / "shot.png"
+    r = screenshot(rrd_path, png, "--size", "400x300", "--wait", "3", "--web-port", ports[0],
+                   "--grpc-port", ports[1], "--debug-port", ports[2])
+    assert r.returncode == 0, r.stderr[-2000:]
+    from PIL import Image
+
+    assert Image.open(png).size == (400, 300)
+    assert [p for p in ports if listening(p)] == []  # the rerun_cli binary, too, is gone
+
+
+def test_screenshot_tool_refuses_a_port_in_use(rrd_path, tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        r = screenshot(rrd_path, tmp_path / "shot.png", "--web-port", port)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert f"--web-port {port}" in r.stderr and "already in use" in r.stderr
+    assert not (tmp_path / "shot.png").exists()

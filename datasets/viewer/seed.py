@@ -173,7 +173,8 @@ def log_sequence(rec, seq: Sequence, progress=None, color=PATH_COLORS[0]) -> int
     rec.log(f"{base}/camera", rr.Pinhole(image_from_camera=seq.K, resolution=[seq.width, seq.height],
                                          camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=FRUSTUM_DEPTH,
                                          color=color, line_width=rr.Radius.ui_points(2.0)), static=True)
-    rec.log(f"{base}/camera/instance", rr.AnnotationContext([]), static=True)  # object ids: not label names
+    if "instance" in seq.modalities:  # object ids: not label names
+        rec.log(f"{base}/camera/instance", rr.AnnotationContext([]), static=True)
     coverage, labels = seq.coverage, seq.points["label"]
     frames = range(len(seq))
     for t in (progress(frames, seq.kind) if progress else frames):
