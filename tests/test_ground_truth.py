@@ -76,6 +76,55 @@ def test_renderer_passes_agree_with_the_ray_cast(yard):
         Simulator(yard, ground_truth="cycles")
 
 
+def _first_hits_float64(origins, dirs, triangles):
+    """Brute force: nearest t > 0 of every ray (N, 3) on triangles (T, 3, 3), float64
+    Moller-Trumbore, and the unit normal of the triangle hit (NaN rows for none)."""
+    a, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
+    best_t, best_n = np.full(len(dirs), np.inf), np.full((len(dirs), 3), np.nan)
+    normals = np.cross(e1, e2)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for k in range(len(triangles)):
+        p = np.cross(dirs, e2[k])
+        det = p @ e1[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = origins - a[k]
+            u = np.einsum("ij,ij->i", s, p) / det
+            q = np.cross(s, e1[k])
+            v = np.einsum("ij,ij->i", dirs, q) / det
+            t = (q @ e2[k]) / det
+        ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < best_t)
+        best_t[ok], best_n[ok] = t[ok], normals[k]
+    return best_t, best_n
+
+
+def test_depth_and_normals_are_exact_float64_hits(yard):
+    """Depth is the planar distance of each pixel-centre ray (float64) to the triangle hit,
+    rounded once to float32; normals are that triangle's. Embree's own float32 distance is
+    off by up to ~100 float32 units in the last place here, and its arithmetic differs
+    between CPU models (docs/guarantees.md), so this also pins the bytes across machines."""
+    from exact_geometry import scene_triangles
+    from generator.geometry.camera import pixel_rays
+
+    sim = Simulator(yard, segmentation_sensitivity=0.0)
+    sim.set_frame(4)  # the truck has moved: its triangles come from the dynamic structure
+    out = sim.render_geometry()
+    pose = sim.get_world_from_camera()
+    dirs = (pixel_rays(sim.K, W, H) @ pose[:3, :3].T).reshape(-1, 3)
+    origins = pose[:3, 3] + sim.clip_start * dirs
+    triangles = scene_triangles(sim.scene_parts()).astype(np.float32).astype(np.float64)  # as the structures hold them
+    t, n = _first_hits_float64(origins, dirs, triangles)
+    expected = (t + sim.clip_start).reshape(H, W)
+    hit = np.isfinite(expected) & np.isfinite(out.depth)
+    assert hit.mean() > 0.5 and np.array_equal(np.isfinite(expected), np.isfinite(out.depth))
+    ulps = np.abs(out.depth[hit] - expected[hit]) / np.spacing(out.depth[hit])
+    assert ulps.max() <= 1.0, f"depth off the float64 hit by up to {ulps.max():.1f} float32 ulps"
+    assert (ulps <= 0.5 + 1e-6).mean() > 0.999  # correctly rounded but at float64 ties
+    # normals: the triangle's, in the camera frame, facing the camera
+    n_cam = (n @ pose[:3, :3]).reshape(H, W, 3)
+    n_cam *= -np.sign(np.sum(n_cam * pixel_rays(sim.K, W, H), axis=-1, keepdims=True))
+    assert np.abs(out.normal[hit] - n_cam[hit]).max() < 1e-6
+
+
 def test_the_kept_answer_follows_pose_and_motion_and_is_not_shared(yard):
     sim = Simulator(yard, segmentation_sensitivity=0.0)
     sim.set_frame(1)

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..passes import RenderOutput
 from .camera import pixel_rays
-from .raycast import SceneGeometry
+from .raycast import SceneGeometry, rows_times
 
 
 @dataclass
@@ -75,7 +75,7 @@ class RayCamera:
         """First hits of every pixel-centre ray from the pose ``world_from_camera`` (4x4)."""
         pose = np.asarray(world_from_camera, dtype=np.float64)
         rot = pose[:3, :3]
-        dirs = self._rays @ rot.T  # world directions with unit camera-frame z: t = planar depth
+        dirs = rows_times(self._rays, rot.T)  # world directions with unit camera-frame z: t = planar depth
         origins = pose[:3, 3] + self.clip_start * dirs  # the ray starts on the near clip plane
         if normals:
             t, part, normal = geometry.cast_with_normals(origins, dirs)
@@ -88,8 +88,8 @@ class RayCamera:
         part_img = np.where(hit, part, -1).reshape(h, w)
         normal_img = None
         if normals:
-            n = normal.astype(np.float64) @ rot  # world -> camera frame
-            n *= np.where(np.einsum("ij,ij->i", n, self._rays) > 0, -1.0, 1.0)[:, None]  # face the camera
+            n = rows_times(normal, rot)  # world -> camera frame
+            n *= np.where((n * self._rays).sum(axis=1) > 0, -1.0, 1.0)[:, None]  # face the camera
             normal_img = np.where(hit[:, None], n, 0.0).astype(np.float32).reshape(h, w, 3)
         return PixelHits(depth_img, part_img, normal_img)
 

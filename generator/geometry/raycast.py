@@ -22,20 +22,85 @@ o3d = import_open3d()
 # does not see a change here: after changing them, delete generator/geometry/__pycache__.
 OCCLUSION_TOL_ABS = 1e-3
 OCCLUSION_TOL_REL = 1e-4
+# First hits: the float64 distance to the hit triangle's plane is kept when it is within
+# GRAZING_TOL_ABS + GRAZING_TOL_REL * t (metres) of Embree's float32 one (always, but for
+# rays almost along the triangle's plane); see SceneGeometry._first_hits.
+GRAZING_TOL_ABS = 1e-3
+GRAZING_TOL_REL = 1e-4
 
 
 def _tensor(a: np.ndarray, dtype=np.float32):
     return o3d.core.Tensor.from_numpy(np.ascontiguousarray(a, dtype=dtype))
 
 
-def _build(parts: Sequence[MeshPart]):
-    scene = o3d.t.geometry.RaycastingScene()
-    ids = []
-    for part in parts:
-        if len(part.faces) == 0:
-            continue
-        ids.append(scene.add_triangles(_tensor(part.world_vertices()), _tensor(part.faces, np.uint32)))
-    return scene if ids else None
+class Structure:
+    """One Embree structure (open3d ``RaycastingScene``) over some parts, with the float32
+    triangles it was given, for recomputing hits in float64 (:func:`hit_distances`)."""
+
+    def __init__(self, parts: Sequence[MeshPart]):
+        self.scene = o3d.t.geometry.RaycastingScene()
+        vertices, faces = [], []
+        for part in parts:
+            if len(part.faces) == 0:
+                continue  # open3d gives geometry ids in insertion order, skipping nothing added
+            v, f = np.ascontiguousarray(part.world_vertices(), dtype=np.float32), part.faces.astype(np.uint32)
+            self.scene.add_triangles(_tensor(v), _tensor(f, np.uint32))
+            vertices.append(v)
+            faces.append(f)
+        self.count = len(vertices)
+        self._vertices, self._faces = vertices, faces
+        self._triangles = None
+
+    def triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(vertices (V, 3) float32 of every geometry in order, faces (F, 3) int64 indices
+        into them, first face (G + 1,) int64 of each geometry id)."""
+        if self._triangles is None:
+            starts = np.cumsum([0] + [len(v) for v in self._vertices])
+            face_start = np.cumsum([0] + [len(f) for f in self._faces]).astype(np.int64)
+            faces = np.concatenate([f.astype(np.int64) + s for f, s in zip(self._faces, starts)])
+            self._triangles = (np.concatenate(self._vertices), faces, face_start)
+        return self._triangles
+
+
+def _build(parts: Sequence[MeshPart]) -> Structure | None:
+    structure = Structure(parts)
+    return structure if structure.count else None
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    # row-wise dot product of (N, 3) float64 arrays, written out: one rounding order on
+    # every machine (no BLAS, no reduction kernel chosen by the CPU)
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``v @ m`` for rows v (N, 3) and a 3x3 ``m``, float64, written out element by element:
+    numpy hands ``@`` to BLAS, whose kernel (and so its rounding) depends on the CPU."""
+    v, m = np.asarray(v, dtype=np.float64), np.asarray(m, dtype=np.float64)
+    return (v[:, 0:1] * m[0] + v[:, 1:2] * m[1]) + v[:, 2:3] * m[2]
+
+
+def hit_distances(origins: np.ndarray, directions: np.ndarray,
+                  corners: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Where each ray (origins, directions: (N, 3)) meets the plane of the triangle it hit
+    (corners a, b, c: (N, 3) each): t (N,) float64 in units of the direction's length
+    (inf where the ray runs along the plane), and the triangle's unit normal (N, 3) float64
+    by the right-hand rule (NaN for a degenerate triangle).
+
+    Plain IEEE float64 arithmetic, element by element (no BLAS, no reduction kernel chosen
+    by the CPU): the same bits on every machine for the same inputs."""
+    o, d = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
+    a, b, c = (np.asarray(x, dtype=np.float64) for x in corners)
+    n = _cross(b - a, c - a)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = _dot(n, a - o) / _dot(n, d)
+        unit = n / np.sqrt(_dot(n, n))[:, None]
+    return t, unit
 
 
 class SceneGeometry:
@@ -100,7 +165,7 @@ class SceneGeometry:
             scenes = [self._static_closed, self._dynamic_closed]
         else:
             scenes = [self._static, self._dynamic]
-        return [s for s in scenes if s is not None]
+        return [s.scene for s in scenes if s is not None]
 
     def world_bounds(self) -> np.ndarray:
         """Axis-aligned bounds (P, 2, 3) of every part at the current matrices (a new array)."""
@@ -196,6 +261,12 @@ class SceneGeometry:
         return self._first_hits(origins, directions, normals=True)
 
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
+        # Embree finds the triangle hit (float32 rays, float32 triangles); the distance and
+        # the normal are then recomputed in float64 from the caller's rays and that triangle
+        # (hit_distances). Embree's own t is float32 arithmetic compiled per instruction set
+        # and picked at run time: off the exact value by up to ~100 float32 units in the last
+        # place on a tilted plane, and different between CPU models.
+        origins, directions = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origins
@@ -205,17 +276,32 @@ class SceneGeometry:
         best_part = np.full(n, -1, dtype=np.int64)
         best_normal = np.zeros((n, 3), dtype=np.float32) if normals else None
         self._scenes()
-        for scene, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
-            if scene is None:
+        for structure, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
+            if structure is None:
                 continue
-            ans = scene.cast_rays(t_rays)
-            t = ans["t_hit"].numpy().astype(np.float64)
-            gid = ans["geometry_ids"].numpy().astype(np.int64)
-            closer = t < best_t
-            best_t[closer] = t[closer]
-            best_part[closer] = np.asarray(self._geometry_to_part(index), dtype=np.int64)[gid[closer]]
+            ans = structure.scene.cast_rays(t_rays)
+            t_embree = ans["t_hit"].numpy()
+            hit = np.flatnonzero(np.isfinite(t_embree))
+            gid = ans["geometry_ids"].numpy()[hit].astype(np.int64)
+            vertices, faces, face_start = structure.triangles()
+            tri = faces[face_start[gid] + ans["primitive_ids"].numpy()[hit].astype(np.int64)]
+            corners = (vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]])
+            t, unit = hit_distances(origins[hit], directions[hit], corners)
+            # A ray nearly along the triangle's plane: the float64 ray may meet the plane far
+            # from where Embree's float32 ray met the triangle; use the float32 ray there.
+            far = ~(np.abs(t - t_embree[hit]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[hit])
+            if far.any():
+                rows = hit[far]
+                t[far], unit[far] = hit_distances(rays[rows, :3], rays[rows, 3:], tuple(x[far] for x in corners))
+            bad = ~np.isfinite(t) | ~np.isfinite(unit).all(axis=1)
+            if bad.any():  # a degenerate triangle: keep Embree's answer
+                t[bad], unit[bad] = t_embree[hit[bad]], ans["primitive_normals"].numpy()[hit[bad]]
+            closer = t < best_t[hit]
+            rows = hit[closer]
+            best_t[rows] = t[closer]
+            best_part[rows] = np.asarray(self._geometry_to_part(index), dtype=np.int64)[gid[closer]]
             if normals:
-                best_normal[closer] = ans["primitive_normals"].numpy()[closer]
+                best_normal[rows] = unit[closer]
         return best_t, best_part, best_normal
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
