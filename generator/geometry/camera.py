@@ -162,6 +162,17 @@ def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarr
     return np.stack([u, v], axis=1), z
 
 
+def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``v @ m`` for vectors v (..., 3) and a 3x3 ``m`` (or ``m`` (N, 3, 3) against v (N, 3),
+    row by row), float64, written out element by element. numpy hands ``@`` to BLAS, whose
+    kernel, and so its rounding, depends on the CPU: ground truth that must be the same
+    bytes on every machine goes through here."""
+    v, m = np.asarray(v, dtype=np.float64), np.asarray(m, dtype=np.float64)
+    if m.ndim == 3:
+        return (v[:, 0:1] * m[:, 0] + v[:, 1:2] * m[:, 1]) + v[:, 2:3] * m[:, 2]
+    return (v[..., 0:1] * m[0] + v[..., 1:2] * m[1]) + v[..., 2:3] * m[2]
+
+
 def pixel_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     """Camera-frame directions (H, W, 3) through pixel centres, scaled so that z = 1."""
     j, i = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)

@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .camera import pixel_rays
+from .camera import pixel_rays, rows_times
 
 
 class PixelGeometry:
@@ -61,13 +61,13 @@ class PixelGeometry:
         rays = pixel_rays(self.K, self.width, self.height)  # camera frame, z = 1
         cam = rays * np.where(self.hit, self.depth, np.nan)[..., None]
         pose = self.poses[self.index]
-        return cam @ pose[:3, :3].T + pose[:3, 3]
+        return rows_times(cam, pose[:3, :3].T) + pose[:3, 3]
 
     def world_normals(self) -> np.ndarray:
         """(H, W, 3) float32 unit normals in the world frame, facing the camera (0: none)."""
         if self.normal_camera is None:
             raise ValueError("these pixel hits were cast without normals")
-        n = self.normal_camera.astype(np.float64) @ self.poses[self.index][:3, :3].T
+        n = rows_times(self.normal_camera, self.poses[self.index][:3, :3].T)
         return np.where(self.surface[..., None], n, 0.0).astype(np.float32)
 
     def points_at(self, t: int) -> np.ndarray:
@@ -83,7 +83,7 @@ class PixelGeometry:
         dyn = slot >= 0
         if dyn.any():
             m = moves[slot[dyn]]
-            out[dyn] = np.einsum("nij,nj->ni", m[:, :3, :3], x[dyn]) + m[:, :3, 3]
+            out[dyn] = rows_times(x[dyn], m[:, :3, :3].transpose(0, 2, 1)) + m[:, :3, 3]
         return out
 
     def flow_to(self, t: int) -> np.ndarray:
@@ -94,11 +94,11 @@ class PixelGeometry:
             return np.full(shape, np.nan, np.float32)
         x = self.points_at(t)
         pose = self.poses[t]
-        cam = (x - pose[:3, 3]) @ pose[:3, :3]  # world -> camera t (rotation transposed)
+        cam = rows_times(x - pose[:3, 3], pose[:3, :3])  # world -> camera t (rotation transposed)
         z = cam[..., 2]
         with np.errstate(invalid="ignore", divide="ignore"):
             front = z > 0
-            uvw = cam @ self.K.T
+            uvw = rows_times(cam, self.K.T)
             u, v = uvw[..., 0] / z, uvw[..., 1] / z
         jj, ii = np.meshgrid(np.arange(self.width) + 0.5, np.arange(self.height) + 0.5)
         flow = np.stack([u - jj, v - ii], axis=-1)

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..passes import RenderOutput
-from .camera import pixel_rays
-from .raycast import SceneGeometry, rows_times
+from .camera import pixel_rays, rows_times
+from .raycast import SceneGeometry
 
 
 @dataclass

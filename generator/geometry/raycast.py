@@ -78,13 +78,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
 
-def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``v @ m`` for rows v (N, 3) and a 3x3 ``m``, float64, written out element by element:
-    numpy hands ``@`` to BLAS, whose kernel (and so its rounding) depends on the CPU."""
-    v, m = np.asarray(v, dtype=np.float64), np.asarray(m, dtype=np.float64)
-    return (v[:, 0:1] * m[0] + v[:, 1:2] * m[1]) + v[:, 2:3] * m[2]
-
-
 def hit_distances(origins: np.ndarray, directions: np.ndarray,
                   corners: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Where each ray (origins, directions: (N, 3)) meets the plane of the triangle it hit
