@@ -1,32 +1,64 @@
-"""Argument checks shared by the Simulator and the environments (bpy-free): one-line
-ValueErrors that name the argument."""
+"""Argument checks shared by the Simulator, the environments and the trajectory planners
+(bpy-free): each raises a one-line ValueError naming the argument, its valid values and the
+value given.
+
+Numbers must be real numbers (Python or numpy; not bools, strings or arrays), integers must be
+integral (Python or numpy; not bools or floats). A number is finite unless the caller says
+``finite=False`` (a clip distance, where ``math.inf`` means no limit); NaN never passes.
+"""
 
 from __future__ import annotations
 
 import math
 import numbers
+from typing import NoReturn
 
 
-def check_number(name: str, value, low=None, high=None, low_open: bool = False) -> float:
-    """``value`` as a float, refusing booleans, non-numbers, NaN and values outside
-    [low, high] (or (low, high] with ``low_open``)."""
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if math.isnan(v):
-        raise ValueError(f"{name} must be a number, got NaN")
-    if low is not None and (v <= low if low_open else v < low):
-        raise ValueError(f"{name} must be {'>' if low_open else '>='} {low}, got {value!r}")
-    if high is not None and v > high:
-        raise ValueError(f"{name} must be <= {high}, got {value!r}")
+def fail(name: str, valid: str, value) -> NoReturn:
+    """Raise the one-line ValueError: '``name`` must be ``valid``, got ``value``'."""
+    raise ValueError(f"{name} must be {valid}, got {value!r}")
+
+
+def check_number(name: str, value, low: float = -math.inf, high: float = math.inf, *, open_low: bool = False,
+                 open_high: bool = False, nonzero: bool = False, finite: bool = True,
+                 valid: str | None = None) -> float:
+    """``value`` as a float if it is a real number in [low, high] (``open_low`` /
+    ``open_high``: that end excluded; ``nonzero``: 0 excluded; ``finite=False``: +-inf allowed
+    where the range holds it); else ValueError (``valid`` replaces the range's words)."""
+    v = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else math.nan
+    ok = (not math.isnan(v) and (math.isfinite(v) or not finite)
+          and (v > low if open_low else v >= low) and (v < high if open_high else v <= high)
+          and not (nonzero and v == 0))
+    if not ok:
+        fail(name, valid or _range_words(low, high, open_low, open_high, nonzero, finite), value)
     return v
 
 
-def check_seed(name: str, value) -> int:
-    """``value`` as an int, refusing booleans, non-integers (floats included) and negatives."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
-        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+def _range_words(low, high, open_low, open_high, nonzero, finite) -> str:
+    kind = "a finite number" if finite else "a number"
+    if math.isinf(low) and math.isinf(high):
+        words = kind
+    elif math.isinf(high):
+        words = f"{kind} {'>' if open_low else '>='} {low:g}"
+    elif math.isinf(low):
+        words = f"{kind} {'<' if open_high else '<='} {high:g}"
+    else:
+        words = f"a number in {'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}"
+    if not finite and (math.isinf(low) or math.isinf(high)):
+        words += f" ({'+-' if math.isinf(low) and math.isinf(high) else '-' if math.isinf(low) else ''}inf allowed)"
+    return words + (", not 0" if nonzero else "")
+
+
+def check_integer(name: str, value, low: int, high: int | None = None, *, valid: str | None = None) -> int:
+    """``value`` as an int if it is an integer (not a bool) from ``low`` to ``high`` (None: no
+    upper end); else ValueError (``valid`` replaces the range's words)."""
+    if (isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low
+            or (high is not None and value > high)):
+        fail(name, valid or (f"an integer >= {low:,}" if high is None else f"an integer from {low:,} to {high:,}"),
+             value)
     return int(value)
+
+
+def check_seed(name: str, value) -> int:
+    """A random seed: a non-negative integer (numpy integers too; bools and floats refused)."""
+    return check_integer(name, value, 0, valid="a non-negative integer")

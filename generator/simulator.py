@@ -47,7 +47,7 @@ class Simulator(CameraMoves, PaperAPI):
         segmentation_sensitivity: in [0, 1]; used by ``render()`` (the paper's figure 2).
         max_pcl_depth: points deeper than this planar depth (metres) are never visible.
         seed: seeds every random choice (point sampling, spawn points, respawns).
-        collision_radius: radius in metres of the camera's collision sphere (>= 0).
+        collision_radius: radius in metres of the camera's collision sphere (finite, >= 0).
         render_preset: None keeps the .blend's render settings (engine, resolution,
             samples); 'preview', 'default' or 'high' override them (see configure_render).
         geometry_nodes_objects: the paper's objects to realise into meshes; accepted for
@@ -87,12 +87,10 @@ class Simulator(CameraMoves, PaperAPI):
         ground_truth: str = "geometry",
         verbose: bool = False,
     ):
-        self.points_density = check_number("points_density", points_density, low=0, low_open=True)
-        if not math.isfinite(self.points_density):
-            raise ValueError(f"points_density must be finite, got {points_density!r}")
+        self.points_density = check_number("points_density", points_density, 0, open_low=True)
         self.segmentation_sensitivity = check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
-        self.max_pcl_depth = check_number("max_pcl_depth", max_pcl_depth, low=0, low_open=True)
-        self.collision_radius = check_number("collision_radius", collision_radius, low=0)
+        self.max_pcl_depth = check_number("max_pcl_depth", max_pcl_depth, 0, open_low=True, finite=False)
+        self.collision_radius = check_number("collision_radius", collision_radius, 0)
         self.seed = check_seed("seed", seed)
         self.blend_file = Path(blend_file)
         self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
@@ -260,7 +258,8 @@ class Simulator(CameraMoves, PaperAPI):
         (``math.inf``: every depth the camera renders, up to its clip end).
         """
         self._check_current()
-        limit = self.max_pcl_depth if max_depth is None else check_number("max_depth", max_depth, low=0, low_open=True)
+        limit = (self.max_pcl_depth if max_depth is None
+                 else check_number("max_depth", max_depth, 0, open_low=True, finite=False))
         pts = self._points
         visible = visible_points(
             self._geometry, pts.world, pts.world_normals, pts.part, self._world_from_camera, self.K,

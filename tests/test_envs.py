@@ -1,5 +1,6 @@
 """The geometric camera and the Gymnasium exploration environment, on small real scenes."""
 
+import functools
 import json
 import math
 
@@ -11,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 import scenes
 from generator import Simulator
 from generator.envs import EXPLORATION_ID
-from generator.envs.exploration import ExplorationEnv
+from generator.envs.exploration import ExplorationEnv, check_keywords
 from generator.envs.scenes import site_code_key
 from generator.geometry.camera import pixel_rays
 
@@ -274,6 +275,32 @@ def test_make_vec_default_runs_one_process_per_env(rooms):
         gym.make_vec(EXPLORATION_ID, num_envs=2, **kw, rgb="False")  # checked here, before any worker starts
 
 
+def test_make_vec_checks_keywords_without_building_an_environment(monkeypatch, tmp_path):
+    """make_vec's bad keywords fail in the calling process, in one line, before any environment
+    (or worker) is made: the checks run on the keywords alone."""
+    built = []
+    original = ExplorationEnv.__init__
+
+    @functools.wraps(original)
+    def counted(self, *args, **kwargs):
+        built.append(kwargs)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(ExplorationEnv, "__init__", counted)
+    for kw, words in ((dict(seeds=[0], colour="red"), r"^ExplorationEnv has no keyword 'colour'; its keywords are "),
+                      (dict(seeds=[0], rgb="False"), "^rgb must be True or False, got 'False'"),
+                      (dict(seeds=[0], step=0, max_episode_steps=5),
+                       "^step must be a finite number of metres > 0, got 0"),
+                      (dict(seeds=[0], num_envs=0), "^num_envs must be an integer >= 1, got 0"),
+                      (dict(blend_files=[tmp_path / "missing.blend"]), "missing.blend")):
+        with pytest.raises((ValueError, FileNotFoundError), match=words) as err:
+            gym.make_vec(EXPLORATION_ID, **({"num_envs": 2} | kw))
+        assert "\n" not in str(err.value)
+    assert built == []
+    ExplorationEnv(seeds=[0], cache_dir=tmp_path)  # the spy sees a constructor call
+    assert len(built) == 1
+
+
 def test_async_vector_env_steps_and_resets(rooms):
     kw = {"blend_files": [str(rooms[0])], "resolution": (24, 16), "points_density": 20.0, "max_steps": 3}
     envs = gym.vector.AsyncVectorEnv([lambda: gym.make("generator.envs:" + EXPLORATION_ID, **kw)] * 2,
@@ -358,8 +385,21 @@ def test_bad_arguments_name_the_argument(tmp_path):
                       (dict(seeds=[0], coverage="seen"), "^coverage"), (dict(seeds=[0], start="x"), "^start"),
                       (dict(seeds=[0], angle=200), "^angle"), (dict(seeds=[0], max_depth=0), "^max_depth"),
                       (dict(seeds=[0], points_density=math.inf), "^points_density"),
-                      (dict(seeds=[0], render_mode="human"), "^render_mode")):
+                      (dict(seeds=[0], render_mode="human"), "^render_mode"),
+                      (dict(seeds=[0], max_depth=math.nan), r"^max_depth must be a number of metres > 0 \(math.inf"),
+                      (dict(seeds=[0], resolution=(64, 5000)),
+                       "^resolution height must be an integer from 1 to 4,096, got 5000"),
+                      (dict(seeds=[0], max_steps=2.0), "^max_steps must be an integer >= 1, got 2.0"),
+                      (dict(seeds=[0], points_density="5"), "^points_density must be a finite number > 0, got '5'")):
         with pytest.raises((ValueError, FileNotFoundError), match=words) as err:
             ExplorationEnv(**kw)
         assert "\n" not in str(err.value)
+        with pytest.raises(type(err.value)) as direct:
+            check_keywords(**kw)  # the constructor's checks are these, declared once
+        assert str(direct.value) == str(err.value)
+    with pytest.raises(ValueError, match=r"^ExplorationEnv has no keyword 'colour'; its keywords are seeds, "
+                                         r"blend_files, .*, render_mode$"):
+        check_keywords(seeds=[0], colour="red")
+    assert check_keywords(seeds=[0])["max_depth"] == 20.0  # the constructor's defaults
+    assert ExplorationEnv(seeds=[0], max_depth=math.inf, cache_dir=tmp_path).max_depth == math.inf
     assert ExplorationEnv(seeds=[0], rgb=np.bool_(True), render_preset="default").rgb is True

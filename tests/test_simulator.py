@@ -251,11 +251,29 @@ def test_scene_without_camera_or_meshes(tmp_path):
         ({"seed": True}, "seed must be a non-negative integer"),
         ({"seed": 2.0}, "seed must be a non-negative integer"),
         ({"collision_radius": -0.1}, "collision_radius"),
+        ({"points_density": "1.0"}, r"^points_density must be a finite number > 0, got '1.0'$"),
+        ({"points_density": float("inf")}, r"^points_density must be a finite number > 0, got inf$"),
+        ({"segmentation_sensitivity": 1.5}, r"^segmentation_sensitivity must be a number in \[0, 1\], got 1.5$"),
+        ({"max_pcl_depth": float("nan")}, r"^max_pcl_depth must be a number > 0 \(inf allowed\), got nan$"),
+        ({"collision_radius": float("inf")}, r"^collision_radius must be a finite number >= 0, got inf$"),
     ],
 )
 def test_bad_parameters(walls, kwargs, message):
     with pytest.raises(ValueError, match=message):
         Simulator(walls, **kwargs)
+
+
+def test_moves_and_depth_limits_are_checked(walls):
+    sim = Simulator(walls, points_density=1)
+    start = sim.get_world_from_camera()
+    for call, message in ((lambda: sim.move_camera_forward(math.inf), "^distance must be a finite number, got inf$"),
+                          (lambda: sim.move_camera_right("1"), "^distance must be a finite number, got '1'$"),
+                          (lambda: sim.turn_camera_right(math.nan), "^angle must be a finite number, got nan$"),
+                          (lambda: sim.compute_point_cloud(max_depth=0), r"^max_depth must be a number > 0 \(inf allowed\)")):
+        with pytest.raises(ValueError, match=message):
+            call()
+    np.testing.assert_array_equal(sim.get_world_from_camera(), start)  # nothing moved
+    assert sim.compute_point_cloud(max_depth=math.inf)[2].any()  # math.inf: no depth limit
 
 
 def test_non_rigid_pose_rejected(walls):

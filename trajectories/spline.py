@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from generator.checks import check_integer, check_number
 from generator.geometry.camera import heading_pose
 
 from . import checks
@@ -33,11 +34,11 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
     lo, hi = checks.box("bounds", bounds, 3)
     checks.count("frames", frames, 2)
     checks.generator("rng", rng)
-    checks.number("speed", speed, 0.0, open_low=True)
-    checks.integer("waypoints", waypoints, 2, checks.MAX_WAYPOINTS)
+    check_number("speed", speed, 0.0, open_low=True)
+    check_integer("waypoints", waypoints, 2, checks.MAX_WAYPOINTS)
     checks.pitch("pitch_deg", pitch_deg)
     checks.fps(fps)
-    checks.integer("attempts", attempts, 1, checks.MAX_ATTEMPTS)
+    check_integer("attempts", attempts, 1, checks.MAX_ATTEMPTS)
     length = speed * (frames - 1) / fps
     spacing = length / waypoints * 0.5  # consecutive waypoints at least this far apart
     if spacing >= float(np.linalg.norm(hi - lo)):

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from generator.checks import check_number
 from generator.geometry.camera import heading_pose, look_at
 
 from . import checks
@@ -33,14 +34,14 @@ def orbit(checker: MotionChecker, center, radius: float, altitude: float, frames
     """``frames`` poses on a circle of ``radius`` metres at ``altitude`` metres around
     ``center`` (x, y), each looking at the centre at ``look_at_height``."""
     c = checks.vectors("center", center, (2,), "(x, y), two finite numbers of metres")
-    checks.number("radius", radius, 0.0, open_low=True)
-    checks.number("altitude", altitude)
+    check_number("radius", radius, 0.0, open_low=True)
+    check_number("altitude", altitude)
     checks.count("frames", frames, 2)
-    checks.number("look_at_height", look_at_height)
-    checks.number("turns", turns, -frames / 2, frames / 2, nonzero=True,
-                  valid=f"a nonzero number with |turns| <= frames / 2 = {frames / 2:g} (negative: clockwise)")
+    check_number("look_at_height", look_at_height)
+    check_number("turns", turns, -frames / 2, frames / 2, nonzero=True,
+                 valid=f"a nonzero number with |turns| <= frames / 2 = {frames / 2:g} (negative: clockwise)")
     checks.fps(fps)
-    checks.number("start_angle", start_angle)
+    check_number("start_angle", start_angle)
     a = start_angle + 2 * math.pi * turns * np.arange(frames) / frames
 
     def make(alt):
@@ -58,11 +59,11 @@ def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spac
     ``spacing`` metres apart, at ``altitude``, camera pitched ``pitch_deg`` (negative:
     down) along the direction of flight; ``frames`` poses evenly spaced along the path."""
     lo, hi = checks.box("bounds", bounds, 2)
-    checks.number("altitude", altitude)
+    check_number("altitude", altitude)
     checks.count("frames", frames, 2)
     least = float(hi[1] - lo[1]) / checks.MAX_PASSES
-    checks.number("spacing", spacing, least, valid=f"a number of metres >= {least:g} (at most "
-                  f"{checks.MAX_PASSES:,} passes across the {hi[1] - lo[1]:g} m of the bounds in y)")
+    check_number("spacing", spacing, least, valid=f"a number of metres >= {least:g} (at most "
+                 f"{checks.MAX_PASSES:,} passes across the {hi[1] - lo[1]:g} m of the bounds in y)")
     checks.pitch("pitch_deg", pitch_deg)
     checks.fps(fps)
     (x0, y0), (x1, y1) = bounds

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from generator.checks import check_integer, check_number
 from generator.geometry.camera import translated_along_axis, turned_about_world_z
 
 from . import checks
@@ -53,8 +54,8 @@ def _check(start, steps: int, rng, step: float, angle: float, fps: float) -> Non
     checks.pose("start", start)
     checks.count("steps", steps, 1)
     checks.generator("rng", rng)
-    checks.number("step", step, 0.0, open_low=True, valid="a distance in metres > 0")
-    checks.number("angle", angle, 0.0, 360.0, open_low=True, open_high=True, valid="a number of degrees in (0, 360)")
+    check_number("step", step, 0.0, open_low=True, valid="a distance in metres > 0")
+    check_number("angle", angle, 0.0, 360.0, open_low=True, open_high=True, valid="a number of degrees in (0, 360)")
     checks.fps(fps)
 
 
@@ -94,7 +95,7 @@ def modified_random_walk(checker: MotionChecker, start: np.ndarray, steps: int, 
     used (the walks share one signature); returns steps + 1 poses (start first).
     """
     _check(start, steps, rng, step, angle, fps)
-    checks.integer("max_draws", max_draws, 1, checks.MAX_DRAWS)
+    check_integer("max_draws", max_draws, 1, checks.MAX_DRAWS)
     poses, actions, draws = [np.array(start, dtype=np.float64)], [], []
     for _ in range(steps):
         pose, n = poses[-1], 0

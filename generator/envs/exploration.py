@@ -9,6 +9,7 @@ Simulator replaced reloads it at ``reset()`` and refuses ``step()``. See docs/en
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
 import sys
@@ -18,12 +19,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..checks import check_number, check_seed
+from ..checks import check_integer, check_number, check_seed
 from ..render_settings import PRESETS as RENDER_PRESETS
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
 
+MAX_RESOLUTION = 4096  # pixels, width and height of the observations
 MAX_LABEL_ID = 255  # upper bound of the label observation (ids index Simulator.labels)
 COVERAGE_SETS = ("all", "observable")
 STARTS = ("default", "random")
@@ -62,35 +64,21 @@ class ExplorationEnv(gym.Env):
                  collision_penalty: float = 0.0, start: str = "default", rgb: bool = False,
                  render_preset: str = "preview", cache_dir: str | os.PathLike | None = None,
                  render_mode: str | None = None):
+        # the arguments by name (locals() holds nothing else yet; __class__ is super()'s cell)
+        options = check_keywords(**{k: v for k, v in locals().items() if k not in ("self", "__class__")})
         super().__init__()
-        self.width, self.height = _resolution(resolution)
-        self.step_m = _positive("step", step)
-        self.angle = _positive("angle", angle)
-        if self.angle > 180:
-            raise ValueError(f"angle must be in (0, 180] degrees, got {angle!r}")
-        self.max_steps = _count("max_steps", max_steps)
-        self.max_depth = _positive("max_depth", max_depth, allow_inf=True)
-        self.points_density = _positive("points_density", points_density)
-        self.collision_penalty = check_number("collision_penalty", collision_penalty, low=0)
-        if math.isinf(self.collision_penalty):
-            raise ValueError(f"collision_penalty must be a finite number >= 0, got {collision_penalty!r}")
-        self.coverage_set = _choice("coverage", coverage, COVERAGE_SETS)
-        self.start_rule = _choice("start", start, STARTS)
-        if not isinstance(rgb, (bool, np.bool_)):
-            raise ValueError(f"rgb must be True or False, got {rgb!r}")
-        self.rgb = bool(rgb)
-        self.render_preset = _choice("render_preset", render_preset, tuple(RENDER_PRESETS))
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.render_mode = render_mode
-        from ..scene.site import PRESETS
-
-        self.scene_preset = _choice("scene_preset", scene_preset, tuple(PRESETS))
-        self.cache_dir = _cache_dir(cache_dir)
-        self._sources = _sources(seeds, blend_files)
+        self.width, self.height = options["resolution"]
+        self.step_m, self.angle, self.max_steps = options["step"], options["angle"], options["max_steps"]
+        self.max_depth, self.points_density = options["max_depth"], options["points_density"]
+        self.collision_penalty = options["collision_penalty"]
+        self.coverage_set, self.start_rule = options["coverage"], options["start"]
+        self.rgb, self.render_preset = options["rgb"], options["render_preset"]
+        self.render_mode = options["render_mode"]
+        self.scene_preset, self.cache_dir = options["scene_preset"], options["cache_dir"]
+        self._sources = options["sources"]
         self._scenes: dict[int, SceneSpec] = {}
 
-        self.action_kind = _choice("action_space", action_space, ("discrete", "continuous"))
+        self.action_kind = options["action_space"]
         if self.action_kind == "discrete":
             self.action_space = spaces.Discrete(5)
         else:
@@ -273,23 +261,51 @@ def _simulator_class():
 
 
 # ---- argument checks ----------------------------------------------------------------------
-def _positive(name: str, value, allow_inf: bool = False) -> float:
-    v = check_number(name, value)
-    if not (v > 0) or (math.isinf(v) and not allow_inf):
-        raise ValueError(f"{name} must be a positive{'' if allow_inf else ' finite'} number, got {value!r}")
-    return v
+def check_keywords(**keywords) -> dict:
+    """``ExplorationEnv``'s keywords checked as its constructor checks them (it calls this), without
+    building an environment: ``gymnasium.make_vec`` checks them here before starting workers.
+    An unknown keyword or a bad value raises a one-line ValueError naming the keyword (a missing
+    .blend: FileNotFoundError). Returns every keyword, defaults filled in, as the environment
+    keeps it; ``seeds`` and ``blend_files`` become ``sources``, the list of scenes."""
+    params = list(inspect.signature(ExplorationEnv).parameters.values())
+    unknown = [k for k in keywords if k not in {p.name for p in params}]
+    if unknown:
+        raise ValueError(f"ExplorationEnv has no keyword {unknown[0]!r}; its keywords are "
+                         f"{', '.join(p.name for p in params)}")
+    kw = {p.name: p.default for p in params} | keywords
+    from ..scene.site import PRESETS
 
-
-def _count(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
+    return {
+        "resolution": _resolution(kw["resolution"]),
+        "step": check_number("step", kw["step"], 0, open_low=True, valid="a finite number of metres > 0"),
+        "angle": check_number("angle", kw["angle"], 0, 180, open_low=True, valid="a number of degrees in (0, 180]"),
+        "max_steps": check_integer("max_steps", kw["max_steps"], 1),
+        "max_depth": check_number("max_depth", kw["max_depth"], 0, open_low=True, finite=False,
+                                  valid="a number of metres > 0 (math.inf: no limit)"),
+        "points_density": check_number("points_density", kw["points_density"], 0, open_low=True),
+        "collision_penalty": check_number("collision_penalty", kw["collision_penalty"], 0),
+        "coverage": _choice("coverage", kw["coverage"], COVERAGE_SETS),
+        "start": _choice("start", kw["start"], STARTS),
+        "rgb": _flag("rgb", kw["rgb"]),
+        "render_preset": _choice("render_preset", kw["render_preset"], tuple(RENDER_PRESETS)),
+        "render_mode": _choice("render_mode", kw["render_mode"], (None, *ExplorationEnv.metadata["render_modes"])),
+        "scene_preset": _choice("scene_preset", kw["scene_preset"], tuple(PRESETS)),
+        "cache_dir": _cache_dir(kw["cache_dir"]),
+        "sources": _sources(kw["seeds"], kw["blend_files"]),
+        "action_space": _choice("action_space", kw["action_space"], ("discrete", "continuous")),
+    }
 
 
 def _choice(name: str, value, choices) -> str:
     if value not in choices:
         raise ValueError(f"{name} must be one of {', '.join(repr(c) for c in choices)}, got {value!r}")
     return value
+
+
+def _flag(name: str, value) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 def _cache_dir(value) -> Path:
@@ -308,9 +324,8 @@ def _resolution(value) -> tuple[int, int]:
         w, h = value
     except (TypeError, ValueError):
         raise ValueError(f"resolution must be (width, height) in pixels, got {value!r}") from None
-    if any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= 4096 for v in (w, h)):
-        raise ValueError(f"resolution must be two integers in 1..4096 (width, height), got {value!r}")
-    return int(w), int(h)
+    return (check_integer("resolution width", w, 1, MAX_RESOLUTION),
+            check_integer("resolution height", h, 1, MAX_RESOLUTION))
 
 
 def _discrete(action) -> int:

@@ -15,17 +15,20 @@ from functools import partial
 
 import gymnasium as gym
 
+from ..checks import check_integer
 from . import EXPLORATION_ID
-from .exploration import ExplorationEnv
+from .exploration import check_keywords
 
 MAKE_ARGS = ("max_episode_steps", "disable_env_checker")  # gymnasium.make's own keywords
 
 
 def make_async(num_envs: int = 1, **kwargs) -> gym.vector.AsyncVectorEnv:
     """``num_envs`` environments of ``kwargs`` (the environment's keywords, and
-    ``gymnasium.make``'s ``max_episode_steps``), one process each, started with ``spawn``."""
-    if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
-        raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-    ExplorationEnv(**{k: v for k, v in kwargs.items() if k not in MAKE_ARGS})  # bad keywords fail here, in one line
+    ``gymnasium.make``'s ``max_episode_steps``), one process each, started with ``spawn``.
+    The keywords are checked first (:func:`.exploration.check_keywords`), before any environment
+    or worker is made; ``AsyncVectorEnv`` then builds one environment here to read its spaces
+    (no scene is loaded until ``reset()``)."""
+    check_integer("num_envs", num_envs, 1)
+    check_keywords(**{k: v for k, v in kwargs.items() if k not in MAKE_ARGS})  # bad keywords fail here, in one line
     make_one = partial(gym.make, f"generator.envs:{EXPLORATION_ID}", **kwargs)
     return gym.vector.AsyncVectorEnv([make_one] * num_envs, context="spawn")
