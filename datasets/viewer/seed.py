@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets.scene import DatasetError, Scene, Sequence
+from datasets.scene import DatasetError, Scene, Sequence, read_point_cloud
 
 from .common import FRAME_TIMELINE, MAX_POINTS, TIME_TIMELINE, annotation_context, class_ids, subsample_stride
 from .images import log_images
@@ -37,8 +37,6 @@ class Stage:
     reads of a :class:`Scene`: its frames through ``datasets.change.Timeline``, its GT cloud
     and mesh from ``phase_K/ground_truth``."""
 
-    point_cloud = Scene.point_cloud  # the same reader: it reads self.path / "ground_truth" / "points.ply"
-
     def __init__(self, timeline, stage: int):
         if not 0 <= stage < timeline.stages:
             raise DatasetError(f"{timeline.path / f'phase_{stage}'}: the timeline seed {timeline.path} has stages "
@@ -49,6 +47,11 @@ class Stage:
 
     def __getitem__(self, kind: str) -> Sequence:
         return self.timeline.sequence(self.stage, kind)
+
+    def point_cloud(self, static_only: bool = False) -> dict:
+        """The stage's labelled ground-truth cloud (``phase_K/ground_truth/points.ply``), read as
+        :meth:`Scene.point_cloud` reads a seed's."""
+        return read_point_cloud(self.path, static_only)
 
 
 def open_scene(path) -> Scene | Stage:
