@@ -35,3 +35,9 @@ def finished(tmp_path_factory):
     r = run_generator(out.name, "--seeds", "4", "--colmap-text", cwd=out.parent)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     return out, r
+
+
+@pytest.fixture(scope="session")
+def seed_folder(finished):
+    """The seed folder of :func:`finished` (seed 4)."""
+    return finished[0] / "seed_000004"

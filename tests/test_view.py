@@ -1,6 +1,8 @@
-"""The Rerun recordings (python -m datasets.view, evaluation --rrd) read back with Rerun's own
-RRD reader (rerun.chunk.RrdReader): entities, frame timeline, poses, intrinsics, cloud sizes
-and the figure-9 classes equal what the seed's files hold (read with the exporters' readers)."""
+"""The Rerun recording of the default seed (python -m datasets.view) read back with Rerun's
+own RRD reader (rerun.chunk.RrdReader): entities, frame timeline, poses, intrinsics, tracks,
+cloud size, class names and images equal what the seed's files hold (read with the
+exporters' readers); the CLI's errors, --spawn and tools/viewer_screenshot.py. Seeds made
+otherwise: test_view_seeds.py; evaluation --rrd: test_view_evaluation.py."""
 
 import math
 import os
@@ -8,7 +10,6 @@ import shutil
 import socket
 import subprocess
 import sys
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -16,55 +17,19 @@ import pyarrow as pa
 import pytest
 from rerun.chunk import RrdReader
 
-from conftest import ROOT, run_generator
+from conftest import ROOT
 from datasets.viewer import subsample_stride, subsampled_count
 from exporters.palette import label_colors
 from exporters.ply import read_ply
 from exporters.tracks import read_tracks
+from recordings import blueprint_views, column, read_rrd, run_module, view
 
 KINDS = ("orbit", "spline")
-
-
-@pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
-def run_module(*args, env=None, cwd=ROOT, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=env, **kw)
-
-
-def read_rrd(path) -> dict:
-    """entity path -> {"static": pyarrow Table or None, "temporal": pyarrow Table or None}."""
-    batches = defaultdict(lambda: defaultdict(list))
-    for chunk in RrdReader(path).stream():
-        batches[chunk.entity_path]["static" if chunk.is_static else "temporal"].append(chunk.to_record_batch())
-    def table(parts):  # chunks of one entity may hold different components: missing ones are null
-        return pa.concat_tables([pa.Table.from_batches([b]) for b in parts], promote_options="default")
-
-    return {e: {k: (table(v) if v else None) for k, v in
-                (("static", parts.get("static", [])), ("temporal", parts.get("temporal", [])))}
-            for e, parts in batches.items()}
-
-
-def column(table: pa.Table, name: str, sort_by: str | None = None) -> list:
-    """A component column as Python values, rows sorted by a timeline (one logged value per row)."""
-    if sort_by is not None:
-        table = table.sort_by(sort_by)
-    return [None if v is None else v[0] if len(v) == 1 else v for v in table.column(name).to_pylist()]
 
 
 def column_major(values) -> np.ndarray:
     """Rerun stores 3x3 matrices column-major."""
     return np.asarray(values, np.float64).reshape(3, 3).T
-
-
-STRICT = os.environ | {"RERUN_STRICT": "1"}  # anything Rerun cannot log raises instead of warning
-
-
-def view(*args, **kw) -> subprocess.CompletedProcess:
-    """``python -m datasets.view *args`` with Rerun in strict mode."""
-    return run_module("datasets.view", *map(str, args), env=kw.pop("env", STRICT), **kw)
 
 
 @pytest.fixture(scope="module")
@@ -157,34 +122,6 @@ def test_class_names_are_the_label_table(recording, seed_folder):
         assert (rgba >> 24, (rgba >> 16) & 255, (rgba >> 8) & 255) == tuple(int(c) for c in colors[i])
 
 
-def test_figure9_recording_classes(seed_folder, tmp_path):
-    ply = read_ply(seed_folder / "ground_truth" / "points.ply")
-    xyz = np.stack([ply.vertex[c] for c in "xyz"], 1).astype(np.float64)
-    labels = ply.vertex["label"].astype(np.int64)
-    n = len(xyz)
-    from scipy.spatial import cKDTree
-
-    isolated = cKDTree(xyz).query(xyz, k=2)[0][:, 1] > 0.002  # no other GT point within 2 mm
-    removed = (np.arange(n) % 5 == 4) & isolated  # no prediction within tau = 1 mm: unmatched (2)
-    relabelled = np.arange(n) % 5 == 1    # predicted with another label: wrong label (1)
-    pred_labels = np.where(relabelled, (labels + 1) % (labels.max() + 1), labels)
-    _, first = np.unique(xyz, axis=0, return_index=True)
-    assert len(first) == n  # no duplicate points, so each kept GT point's nearest prediction is itself
-    np.savetxt(tmp_path / "pred.txt", np.c_[xyz[~removed], pred_labels[~removed]], fmt="%.6f %.6f %.6f %d")
-    out = tmp_path / "fig9.rrd"
-    r = run_module("evaluation", "reconstruction", "--gt", str(seed_folder), "--pred", str(tmp_path / "pred.txt"),
-                   "--tau", "0.001", "--rrd", str(out))
-    assert r.returncode == 0, r.stderr[-2000:]
-    rec = read_rrd(out)
-    assert {"/world/prediction", "/world/ground_truth", "/world/figure9"} <= set(rec)
-    table = rec["/world/figure9"]["static"]
-    ids = [v for v in table.column("Points3D:class_ids").to_pylist() if v is not None][0]
-    expected = np.where(removed, 2, np.where(relabelled & (pred_labels != labels), 1, 0))
-    k = subsample_stride(n, 1_000_000)
-    np.testing.assert_array_equal(ids, expected[::k])
-    assert len(rec["/world/prediction"]["static"].column("Points3D:positions").to_pylist()[0]) == int((~removed).sum())
-
-
 def test_not_a_seed_folder_is_one_line_and_exit_2(tmp_path):
     (tmp_path / "notes.txt").write_text("not a seed")
     out = tmp_path / "x.rrd"
@@ -213,15 +150,6 @@ def test_bad_arguments_are_one_line_and_exit_2(seed_folder, tmp_path, args, says
     assert not list(tmp_path.rglob("*.rrd")) and not list(seed_folder.glob("*.rrd"))
 
 
-def test_evaluation_rrd_inside_the_seed_folder_is_refused(seed_folder, tmp_path):
-    ply = read_ply(seed_folder / "ground_truth" / "points.ply")
-    np.save(tmp_path / "pred.npy", np.stack([ply.vertex[c] for c in "xyz"], 1)[:100])
-    r = run_module("evaluation", "reconstruction", "--gt", str(seed_folder), "--pred", str(tmp_path / "pred.npy"),
-                   "--rrd", str(seed_folder / "result.rrd"))
-    assert r.returncode == 2 and "--rrd" in r.stderr and r.stderr.count("\n") == 1
-    assert not (seed_folder / "result.rrd").exists()
-
-
 # ---- what a seed holds and how Rerun shows it ---------------------------------------------------
 
 IMAGES = ("rgb", "rgb_linear", "depth", "label", "instance", "normal", "flow", "backward_flow")
@@ -232,20 +160,6 @@ def image_pixels(table: pa.Table, t: int) -> np.ndarray:
     table = table.sort_by("frame")
     fmt = table.column("Image:format").to_pylist()[t][0]
     return np.asarray(table.column("Image:buffer").to_pylist()[t][0], np.uint8).reshape(fmt["height"], fmt["width"], -1)
-
-
-def blueprint_views(path) -> list[dict]:
-    """The default layout's views: class ('2D', '3D', ...), name, origin, contents query."""
-    reader = RrdReader(path)
-    views = defaultdict(dict)
-    for chunk in reader.stream(store=reader.blueprints()[0]):
-        batch = chunk.to_record_batch()
-        for key, col in (("class", "ViewBlueprint:class_identifier"), ("name", "ViewBlueprint:display_name"),
-                         ("origin", "ViewBlueprint:space_origin"), ("query", "ViewContents:query")):
-            if col in batch.schema.names:
-                value = batch.column(col).to_pylist()[-1]
-                views[chunk.entity_path.removesuffix("/ViewContents")][key] = value if key == "query" else value[0]
-    return [v for v in views.values() if "class" in v]
 
 
 def test_default_seed_logs_without_rerun_warnings(view_run):
@@ -301,76 +215,6 @@ def test_only_the_rgb_image_is_drawn_in_3d(rrd_path, recording):
         for name in IMAGES:
             assert f"/world/{kind}/camera/{name}" in recording  # every modality of the default seed is logged
             assert (f"- $origin/{kind}/camera/{name}" in site["query"]) == (name != "rgb"), name
-
-
-@pytest.fixture(scope="module", params=["rgb", "depth"])
-def partial_seed(request, tmp_path_factory):
-    """A seed made with --outputs leaving most modalities out."""
-    out = tmp_path_factory.mktemp(f"only_{request.param}")
-    r = run_generator(out, "--seeds", "4", "--trajectory", "orbit", "--outputs", request.param)
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return request.param, out / "seed_000004"
-
-
-def test_a_seed_with_some_outputs_is_viewed(partial_seed, tmp_path):
-    only, folder = partial_seed
-    out = tmp_path / "partial.rrd"
-    r = view(folder, "--out", out)
-    assert r.returncode == 0, r.stderr[-2000:]
-    rec = read_rrd(out)
-    images = {e.rsplit("/", 1)[1] for e in rec if e.startswith("/world/orbit/camera/")} - {"tracks"}
-    assert images == {only}
-    written = read_tracks(folder / "orbit" / "tracks.h5")
-    frames = list(range(len(written["world_from_camera"])))
-    for entity in ("/world/orbit/camera", f"/world/orbit/camera/{only}", "/world/orbit/camera/tracks",
-                   "/world/orbit/tracks", "/coverage/orbit"):
-        assert sorted(rec[entity]["temporal"].column("frame").to_pylist()) == frames, entity
-    translation = column(rec["/world/orbit/camera"]["temporal"], "Transform3D:translation", "frame")
-    np.testing.assert_allclose(translation, written["world_from_camera"][:, :3, 3], rtol=0, atol=1e-4)
-    xy2d = column(rec["/world/orbit/camera/tracks"]["temporal"], "Points2D:positions", "frame")
-    assert sum(len(v) for v in xy2d) == len(written["xy"])
-    n = len(read_ply(folder / "ground_truth" / "points.ply").vertex["x"])
-    points = rec["/world/ground_truth/points"]["static"].column("Points3D:positions").to_pylist()[0]
-    assert len(points) == subsampled_count(n, 1_000_000)
-    for v in blueprint_views(out):  # the 2D views name only what was logged
-        if v["class"] == "2D":
-            assert {q.removeprefix("$origin/") for q in v["query"]} <= images | {"tracks"}, v
-
-
-@pytest.fixture(scope="module")
-def timeline_seed(tmp_path_factory):
-    out = tmp_path_factory.mktemp("timeline")
-    r = run_generator(out, "--seeds", "5", "--trajectory", "orbit", "--phases", "2", "--outputs", "rgb,depth,instance")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return out / "seed_000005"
-
-
-def test_one_stage_of_a_timeline_is_viewed(timeline_seed, tmp_path):
-    r = view(timeline_seed / "phase_1", cwd=tmp_path, env=STRICT | {"PYTHONPATH": str(ROOT)})  # default --out: here
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert r.stdout.strip() == "seed_000005_phase_1.rrd"  # the default name says which stage
-    out = tmp_path / "seed_000005_phase_1.rrd"
-    assert [s.recording_id for s in RrdReader(out).recordings()] == ["seed_000005_phase_1"]
-    rec = read_rrd(out)
-    stage = {k: read_ply(timeline_seed / f"phase_{k}" / "ground_truth" / "points.ply").vertex for k in (0, 1)}
-    xyz = {k: np.stack([v[c] for c in "xyz"], 1) for k, v in stage.items()}
-    assert xyz[0].shape != xyz[1].shape or not np.array_equal(xyz[0], xyz[1])  # the stages differ
-    k = subsample_stride(len(xyz[1]), 1_000_000)
-    points = rec["/world/ground_truth/points"]["static"].column("Points3D:positions").to_pylist()[0]
-    np.testing.assert_array_equal(np.asarray(points, np.float32), xyz[1][::k])
-    written = read_tracks(timeline_seed / "phase_1" / "orbit" / "tracks.h5")
-    coverage = column(rec["/coverage/orbit"]["temporal"], "Scalars:scalars", "frame")
-    np.testing.assert_allclose(coverage, written["coverage"], rtol=0, atol=1e-12)
-    xy2d = column(rec["/world/orbit/camera/tracks"]["temporal"], "Points2D:positions", "frame")
-    np.testing.assert_array_equal(np.concatenate([np.asarray(v, np.float32).reshape(-1, 2) for v in xy2d]),
-                                  written["xy"])
-
-
-def test_a_timeline_seed_folder_names_the_stage_to_view(timeline_seed, tmp_path):
-    r = view(timeline_seed, "--out", tmp_path / "x.rrd")
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
-    assert f"python -m datasets.view {timeline_seed / 'phase_K'} (K = 0 to 1)" in r.stderr
-    assert not (tmp_path / "x.rrd").exists()
 
 
 # ---- --spawn where the virtual environment is not activated ---------------------------------------
