@@ -222,12 +222,14 @@ def test_kernel_arithmetic_rounds_as_the_rules():
 
 def test_kernels_have_no_fused_multiply_add():
     """numba is not allowed to fuse a * b + c into one rounding (it would change the bits of
-    the rules' tests): no FMA instruction in the compiled code of the visibility kernels
-    (compute_point_cloud's and the observability mask's)."""
+    the rules' tests, and make the ground truth's bits depend on the CPU): no FMA instruction
+    in the compiled code of the visibility kernels (compute_point_cloud's and the
+    observability mask's) and of the pixel ground truth's (exact_kernels)."""
     import re
 
     import numba
 
+    from generator.geometry import exact_kernels
     from generator.geometry import point_block_kernels as kernels
     from generator.geometry.observability import visible_from
     from generator.geometry.point_block_kernels import omni_rays
@@ -241,7 +243,11 @@ def test_kernels_have_no_fused_multiply_add():
     visible_points(SceneGeometry([ground]), sim_points, normals, np.zeros(500, np.int32), pose, K, 64, 48)
     visible_from(SceneGeometry([ground]), sim_points, normals, np.zeros(500, np.int32), np.zeros(3))
     fma = re.compile(r"^\s*(v?f(n)?m(add|sub)\w*|fml[as]\w*)\s", re.MULTILINE | re.IGNORECASE)
-    for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays):
+    exact_kernels.rows_times(np.ones((2, 3)), np.eye(3), np.empty((2, 3)))
+    exact_kernels.batch_rows_times(np.ones((2, 3)), np.ones((2, 3, 3)), np.empty((2, 3)))
+    SceneGeometry([ground]).cast_with_normals(np.zeros((2, 3)), np.array([[0, 0, -1.0], [0.1, 0, -1]]))  # plane_hits
+    for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays,
+                   exact_kernels.rows_times, exact_kernels.batch_rows_times, exact_kernels.plane_hits):
         if not kernel.signatures:
             kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))
         # numba shows no code of a function loaded from its disk cache: compile it afresh,

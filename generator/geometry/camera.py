@@ -164,13 +164,16 @@ def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarr
 
 def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``v @ m`` for vectors v (..., 3) and a 3x3 ``m`` (or ``m`` (N, 3, 3) against v (N, 3),
-    row by row), float64, written out element by element. numpy hands ``@`` to BLAS, whose
-    kernel, and so its rounding, depends on the CPU: ground truth that must be the same
-    bytes on every machine goes through here."""
-    v, m = np.asarray(v, dtype=np.float64), np.asarray(m, dtype=np.float64)
-    if m.ndim == 3:
-        return (v[:, 0:1] * m[:, 0] + v[:, 1:2] * m[:, 1]) + v[:, 2:3] * m[:, 2]
-    return (v[..., 0:1] * m[0] + v[..., 1:2] * m[1]) + v[..., 2:3] * m[2]
+    row by row), float64, as (v0 m0k + v1 m1k) + v2 m2k in IEEE arithmetic. numpy hands
+    ``@`` to BLAS, whose kernel, and so its rounding, depends on the CPU: ground truth that
+    must be the same bytes on every machine goes through here (generator/geometry/exact_kernels.py)."""
+    from . import exact_kernels  # numba: loaded on first use, not by every reader of this module
+
+    v, m = np.asarray(v, dtype=np.float64), np.ascontiguousarray(m, dtype=np.float64)
+    flat = np.ascontiguousarray(v.reshape(-1, 3))
+    out = np.empty(flat.shape)
+    (exact_kernels.batch_rows_times if m.ndim == 3 else exact_kernels.rows_times)(flat, m, out)
+    return out.reshape(v.shape)
 
 
 def pixel_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:

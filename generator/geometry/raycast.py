@@ -35,7 +35,7 @@ def _tensor(a: np.ndarray, dtype=np.float32):
 
 class Structure:
     """One Embree structure (open3d ``RaycastingScene``) over some parts, with the float32
-    triangles it was given, for recomputing hits in float64 (:func:`hit_distances`)."""
+    triangles it was given, for recomputing hits in float64 (exact_kernels.plane_hits)."""
 
     def __init__(self, parts: Sequence[MeshPart]):
         self.scene = o3d.t.geometry.RaycastingScene()
@@ -52,48 +52,20 @@ class Structure:
         self._triangles = None
 
     def triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(vertices (V, 3) float32 of every geometry in order, faces (F, 3) int64 indices
-        into them, first face (G + 1,) int64 of each geometry id)."""
+        """(vertices (V, 3) float64, the float32 values Embree holds, of every geometry in
+        order; faces (F, 3) int64 indices into them; first face (G + 1,) int64 of each
+        geometry id)."""
         if self._triangles is None:
             starts = np.cumsum([0] + [len(v) for v in self._vertices])
             face_start = np.cumsum([0] + [len(f) for f in self._faces]).astype(np.int64)
             faces = np.concatenate([f.astype(np.int64) + s for f, s in zip(self._faces, starts)])
-            self._triangles = (np.concatenate(self._vertices), faces, face_start)
+            self._triangles = (np.concatenate(self._vertices).astype(np.float64), faces, face_start)
         return self._triangles
 
 
 def _build(parts: Sequence[MeshPart]) -> Structure | None:
     structure = Structure(parts)
     return structure if structure.count else None
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    # row-wise dot product of (N, 3) float64 arrays, written out: one rounding order on
-    # every machine (no BLAS, no reduction kernel chosen by the CPU)
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
-def hit_distances(origins: np.ndarray, directions: np.ndarray,
-                  corners: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Where each ray (origins, directions: (N, 3)) meets the plane of the triangle it hit
-    (corners a, b, c: (N, 3) each): t (N,) float64 in units of the direction's length
-    (inf where the ray runs along the plane), and the triangle's unit normal (N, 3) float64
-    by the right-hand rule (NaN for a degenerate triangle).
-
-    Plain IEEE float64 arithmetic, element by element (no BLAS, no reduction kernel chosen
-    by the CPU): the same bits on every machine for the same inputs."""
-    o, d = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
-    a, b, c = (np.asarray(x, dtype=np.float64) for x in corners)
-    n = _cross(b - a, c - a)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = _dot(n, a - o) / _dot(n, d)
-        unit = n / np.sqrt(_dot(n, n))[:, None]
-    return t, unit
 
 
 class SceneGeometry:
@@ -256,7 +228,7 @@ class SceneGeometry:
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
         # Embree finds the triangle hit (float32 rays, float32 triangles); the distance and
         # the normal are then recomputed in float64 from the caller's rays and that triangle
-        # (hit_distances). Embree's own t is float32 arithmetic compiled per instruction set
+        # (exact_kernels.plane_hits). Embree's own t is float32 arithmetic compiled per instruction set
         # and picked at run time: off the exact value by up to ~100 float32 units in the last
         # place on a tilted plane, and different between CPU models.
         origins, directions = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
@@ -277,18 +249,21 @@ class SceneGeometry:
             hit = np.flatnonzero(np.isfinite(t_embree))
             gid = ans["geometry_ids"].numpy()[hit].astype(np.int64)
             vertices, faces, face_start = structure.triangles()
-            tri = faces[face_start[gid] + ans["primitive_ids"].numpy()[hit].astype(np.int64)]
-            corners = (vertices[tri[:, 0]], vertices[tri[:, 1]], vertices[tri[:, 2]])
-            t, unit = hit_distances(origins[hit], directions[hit], corners)
+            corners = faces[face_start[gid] + ans["primitive_ids"].numpy()[hit].astype(np.int64)]
+            t, unit = self._plane_hits(origins[hit], directions[hit], vertices, corners, normals)
             # A ray nearly along the triangle's plane: the float64 ray may meet the plane far
             # from where Embree's float32 ray met the triangle; use the float32 ray there.
             far = ~(np.abs(t - t_embree[hit]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[hit])
             if far.any():
                 rows = hit[far]
-                t[far], unit[far] = hit_distances(rays[rows, :3], rays[rows, 3:], tuple(x[far] for x in corners))
-            bad = ~np.isfinite(t) | ~np.isfinite(unit).all(axis=1)
-            if bad.any():  # a degenerate triangle: keep Embree's answer
-                t[bad], unit[bad] = t_embree[hit[bad]], ans["primitive_normals"].numpy()[hit[bad]]
+                t[far], unit32 = self._plane_hits(rays[rows, :3], rays[rows, 3:], vertices, corners[far], normals)
+                if normals:
+                    unit[far] = unit32
+            bad = ~np.isfinite(t) | (~np.isfinite(unit).all(axis=1) if normals else False)
+            if np.any(bad):  # a degenerate triangle: keep Embree's answer
+                t[bad] = t_embree[hit[bad]]
+                if normals:
+                    unit[bad] = ans["primitive_normals"].numpy()[hit[bad]]
             closer = t < best_t[hit]
             rows = hit[closer]
             best_t[rows] = t[closer]
@@ -296,6 +271,16 @@ class SceneGeometry:
             if normals:
                 best_normal[rows] = unit[closer]
         return best_t, best_part, best_normal
+
+    @staticmethod
+    def _plane_hits(origins, directions, vertices, corners, normals: bool):
+        from .exact_kernels import plane_hits
+
+        n = len(corners)
+        t, unit = np.empty(n), np.empty((n, 3) if normals else (0, 3))
+        plane_hits(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
+                   vertices, np.ascontiguousarray(corners), t, unit, normals)
+        return t, (unit if normals else None)
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces
