@@ -27,11 +27,6 @@ from generator.geometry.camera import project
 from trajectories import Trajectory
 
 
-@pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
 def test_scene_reads_back_what_was_written(seed_folder):
     scene = Scene(seed_folder)
     assert scene.seed == 4 and scene.trajectories == ["orbit", "spline"] and len(scene.frames) == 6

@@ -147,11 +147,6 @@ def test_order_invariance_and_direction_swap(a, b, rnd):
 
 # ---- on the real pipeline's output ----------------------------------------------------------------
 
-@pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
 @pytest.mark.parametrize("kind", ["orbit", "spline"])
 def test_coverage_from_stored_mesh_equals_the_simulators_history(seed_folder, kind):
     expected = json.loads((seed_folder / kind / "coverage.json").read_text())

@@ -18,11 +18,6 @@ from exporters.tracks import read_tracks
 from generator.geometry.o3d import import_open3d
 
 
-@pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
 @pytest.mark.parametrize("kind", ["orbit", "spline"])
 def test_transforms_json_reproduces_the_poses(seed_folder, kind):
     folder = seed_folder / kind

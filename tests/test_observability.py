@@ -112,11 +112,6 @@ def test_viewpoints_are_a_spread_deterministic_prefix():
         default_viewpoints(pool, 0)
 
 
-@pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
 def test_stored_masks_equal_the_simulators(seed_folder):
     gt = seed_folder / "ground_truth"
     sim = Simulator(seed_folder / "scene" / "site.blend", points_density=0.3, seed=4)  # the tiny run's settings

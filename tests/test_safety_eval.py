@@ -28,11 +28,6 @@ from trajectories import Trajectory
 
 
 @pytest.fixture(scope="module")
-def seed_folder(finished):
-    return finished[0] / "seed_000004"
-
-
-@pytest.fixture(scope="module")
 def perfect_tracks(seed_folder, tmp_path_factory):
     tv = read_tracks(seed_folder / "orbit" / "tracks.h5")["tapvid"]
     path = tmp_path_factory.mktemp("pred") / "perfect.npz"
