@@ -34,7 +34,7 @@ from . import FORMAT_VERSION, VERSION_REMEDY
 PLY_VERSION_COMMENT = "buildee ground truth format"  # the PLY header's comment, followed by the version
 from .hdf5 import CHECKSUM, H5_ERRORS, create_file, damaged, dataset, reason, text_attribute
 from .palette import label_colors
-from .ply import PlyData, read_ply, write_ply
+from .ply import PlyData, PlyError, read_ply, write_ply
 
 FILES = ("points.ply", "mesh.ply", "scene.h5")
 DEFAULT_SCORING_DENSITY = 100.0  # points per square metre: mean spacing ~0.1 m, mean NN distance ~0.05 m
@@ -203,6 +203,23 @@ def check_ply_version(path: str | Path, comments: list[str]) -> None:
 
 class GroundTruthError(ValueError):
     """A ground-truth folder or file that cannot be used (the message says why)."""
+
+
+def read_mesh(folder: str | Path) -> PlyData:
+    """The ground-truth mesh ``folder/mesh.ply`` (``folder``: a seed's ground_truth/ folder):
+    vertices x, y, z (float32 world metres) coloured by label, ``faces`` (F, 3) and the face
+    properties label and instance. A missing or damaged file, one of another format version or
+    one without faces raises a one-line :class:`GroundTruthError` naming the file."""
+    path = Path(folder) / "mesh.ply"
+    try:
+        mesh = read_ply(path)
+    except PlyError as exc:
+        raise GroundTruthError(f"{exc}; regenerate this seed with python -m generator") from None
+    check_ply_version(path, mesh.comments)
+    if mesh.faces is None:
+        raise GroundTruthError(f"{path}: no faces; not the ground-truth mesh of python -m generator, "
+                               "regenerate this seed")
+    return mesh
 
 
 @dataclass

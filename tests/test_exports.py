@@ -10,7 +10,7 @@ from PIL import Image
 
 from exact_geometry import closest_point_on_triangles
 from exporters.exr import read_frame_exr
-from exporters.ground_truth import GroundTruthError, read_ground_truth
+from exporters.ground_truth import GroundTruthError, read_ground_truth, read_mesh
 from exporters.nerfstudio import read_depth_png
 from exporters.palette import label_colors
 from exporters.ply import PlyError, read_ply, write_ply
@@ -70,7 +70,7 @@ def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
     assert abs(len(ours.points) / area - 5.0) < 0.1
     # every point lies on a triangle of its own object, which carries its label (exact float64
     # distances to every triangle, for a random subset; open3d's float32 queries are off by mm)
-    mesh = read_ply(gt / "mesh.ply")
+    mesh = read_mesh(gt)
     corners = mesh.points[mesh.faces].transpose(1, 0, 2)
     rng = np.random.default_rng(0)
     on_own, labels_ok = 0, 0
@@ -87,7 +87,7 @@ def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
 def test_ground_truth_mesh_opens_in_open3d_with_labels(seed_folder):
     o3d = import_open3d()
     gt = seed_folder / "ground_truth"
-    ours = read_ply(gt / "mesh.ply")
+    ours = read_mesh(gt)
     mesh = o3d.io.read_triangle_mesh(str(gt / "mesh.ply"))
     np.testing.assert_array_equal(np.asarray(mesh.vertices), ours.points)
     np.testing.assert_array_equal(np.asarray(mesh.triangles), ours.faces)

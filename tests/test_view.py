@@ -19,6 +19,8 @@ from rerun.chunk import RrdReader
 
 from conftest import ROOT
 from datasets.viewer import subsample_stride, subsampled_count
+from exporters import FORMAT_VERSION
+from exporters.ground_truth import PLY_VERSION_COMMENT
 from exporters.palette import label_colors
 from exporters.ply import read_ply
 from exporters.tracks import read_tracks
@@ -148,6 +150,22 @@ def test_bad_arguments_are_one_line_and_exit_2(seed_folder, tmp_path, args, says
     assert r.returncode == 2 and says in r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert not list(tmp_path.rglob("*.rrd")) and not list(seed_folder.glob("*.rrd"))
+
+
+def test_a_mesh_of_another_format_version_is_one_line_and_exit_2(seed_folder, tmp_path):
+    """The viewer reads mesh.ply with the exporters' reader (exporters.ground_truth.read_mesh),
+    which refuses a header that states another format version."""
+    seed = shutil.copytree(seed_folder, tmp_path / seed_folder.name)
+    mesh = seed / "ground_truth" / "mesh.ply"
+    data = mesh.read_bytes()
+    stated = f"comment {PLY_VERSION_COMMENT} {FORMAT_VERSION}\n".encode()
+    assert data.count(stated) == 1
+    mesh.write_bytes(data.replace(stated, f"comment {PLY_VERSION_COMMENT} 0.0\n".encode()))
+    out = tmp_path / "x.rrd"
+    r = run_module("datasets.view", str(seed), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.startswith("error: ")
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert f"{mesh}: ground-truth format 0.0, this reader reads {FORMAT_VERSION}" in r.stderr and not out.exists()
 
 
 # ---- what a seed holds and how Rerun shows it ---------------------------------------------------

@@ -151,15 +151,12 @@ def log_cloud(rec, scene: Scene, max_points: int) -> int:
 def log_mesh(rec, scene: Scene) -> None:
     import rerun as rr
 
-    from exporters.ply import PlyError, read_ply
+    from exporters.ground_truth import GroundTruthError, read_mesh
 
-    path = scene.path / "ground_truth" / "mesh.ply"
     try:
-        mesh = read_ply(path)
-    except PlyError as exc:
-        raise DatasetError(f"{exc}; regenerate this seed with python -m generator") from None
-    if mesh.faces is None:
-        raise DatasetError(f"{path}: no faces; not the ground-truth mesh of python -m generator, regenerate this seed")
+        mesh = read_mesh(scene.path / "ground_truth")
+    except GroundTruthError as exc:
+        raise DatasetError(str(exc)) from None
     colors = np.stack([mesh.vertex[c] for c in ("red", "green", "blue")], 1) if "red" in mesh.vertex else None
     rec.log("world/ground_truth/mesh", rr.Mesh3D(vertex_positions=mesh.points.astype(np.float32),
                                                  triangle_indices=mesh.faces.astype(np.uint32),
