@@ -7,6 +7,8 @@ import subprocess
 import sys
 from dataclasses import dataclass, fields, replace
 
+from .checks import check_integer, check_number
+
 ENGINES = ("CYCLES", "BLENDER_EEVEE", "BLENDER_WORKBENCH")
 DEVICES = ("cpu", "gpu", "auto")  # Cycles device: the CPU, a CUDA/OptiX GPU, or a GPU when there is one
 DENOISE_PREFILTERS = ("NONE", "FAST", "ACCURATE")
@@ -67,10 +69,6 @@ def _choice(name: str, value, choices) -> None:
         raise ValueError(f"{name} must be one of {', '.join(map(str, choices))}, got {value!r}")
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
 def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
     """Validated settings from a preset name (or None: keep the .blend's) and overrides."""
     if preset is not None and preset not in PRESETS:
@@ -82,28 +80,25 @@ def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
     s = base.merged(RenderSettings(**overrides))
     if s.engine is not None and s.engine not in ENGINES:
         raise ValueError(f"unknown render engine {s.engine!r}; choose one of {', '.join(ENGINES)}")
-    if s.samples is not None and (not _is_int(s.samples) or s.samples < 1):
-        raise ValueError(f"samples must be an integer >= 1, got {s.samples!r}")
-    if s.bounces is not None and (not _is_int(s.bounces) or s.bounces < 0):
-        raise ValueError(f"bounces must be an integer >= 0, got {s.bounces!r}")
-    if s.threads is not None and (not _is_int(s.threads) or s.threads < 0):
-        raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {s.threads!r}")
+    s = replace(s, **{name: check_integer(name, getattr(s, name), low, valid=valid)
+                      for name, low, valid in (("samples", 1, None), ("bounces", 0, None),
+                                               ("threads", 0, "an integer >= 0 (0 = all cores)"))
+                      if getattr(s, name) is not None})
     _choice("denoise_prefilter", s.denoise_prefilter, DENOISE_PREFILTERS)
     _choice("denoise_quality", s.denoise_quality, DENOISE_QUALITIES)
     _choice("device", s.device, DEVICES)
     for name in ("denoise", "light_tree", "persistent_data"):
         if getattr(s, name) is not None and not isinstance(getattr(s, name), bool):
             raise ValueError(f"{name} must be True or False, got {getattr(s, name)!r}")
-    t = s.adaptive_threshold
-    if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 <= t < 1):
-        raise ValueError(f"adaptive_threshold must be a number in [0, 1) (0 = off), got {t!r}")
+    if s.adaptive_threshold is not None:
+        s = replace(s, adaptive_threshold=check_number("adaptive_threshold", s.adaptive_threshold, 0, 1,
+                                                       open_high=True, valid="a number in [0, 1) (0 = off)"))
     if s.resolution is not None:
         try:
-            w, h = (int(v) for v in s.resolution)
+            w, h = s.resolution
         except (TypeError, ValueError):
             raise ValueError(f"resolution must be (width, height), got {s.resolution!r}") from None
-        if w <= 0 or h <= 0 or (w, h) != tuple(s.resolution):
-            raise ValueError(f"resolution must be two positive integers, got {s.resolution!r}")
+        s = replace(s, resolution=(check_integer("resolution width", w, 1), check_integer("resolution height", h, 1)))
     return s
 
 

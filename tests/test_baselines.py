@@ -3,6 +3,7 @@ reconstructed points on the scene's surfaces."""
 
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -43,6 +44,14 @@ def test_paper_voxel_rule_corners_and_first_label():
     np.testing.assert_allclose(corners[order], [[-0.5, 0.0, 0.0], [0.0, 0.0, 0.0]])
     np.testing.assert_array_equal(labels[order], [7, 2])
     assert len(vm) == 2
+
+
+@pytest.mark.parametrize("voxel", [0, -0.5, math.inf, math.nan, "0.5", True])
+def test_paper_voxel_size_is_checked(voxel):
+    from generator.baselines.paper_voxels import FirstSeenVoxels
+
+    with pytest.raises(ValueError, match=f"^voxel size must be a positive number of metres, got {re.escape(repr(voxel))}$"):
+        FirstSeenVoxels(voxel)
 
 
 def baselines(*args):

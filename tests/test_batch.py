@@ -1,6 +1,7 @@
 """The batch job end to end, in real processes, on tiny configurations."""
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -195,9 +196,12 @@ def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(
         (["--seeds", "1.5"], "seed must be an integer from 0"),
         (["--seeds", str(2**64)], "seed must be an integer from 0 to 9223372036854775807"),
         (["--seeds", "9" * 5000], "seed must be an integer from 0"),
-        (["--resolution", "3x2"], "each side must be 4 to 16384 pixels"),
-        (["--resolution", "70000x4"], "each side must be 4 to 16384 pixels"),
-        (["--resolution", "100000x100000"], "each side must be 4 to 16384 pixels"),
+        (["--resolution", "3x2"], "resolution width must be an integer from 4 to 16,384 pixels "
+                                      "(Blender renders smaller sides as 4), got 3"),
+        (["--resolution", "70000x4"], "resolution width must be an integer from 4 to 16,384 pixels "
+                                      "(Blender renders smaller sides as 4), got 70000"),
+        (["--resolution", "100000x100000"], "resolution width must be an integer from 4 to 16,384 pixels "
+                                      "(Blender renders smaller sides as 4), got 100000"),
         (["--resolution", "4000x2200"], "the limit is 8,294,400"),
         (["--frames", "100000"], "frames must be an integer from 2 to 10000"),
         (["--scoring-density", "1e7"], "--scoring-density 1e+07: a small site has more than 2,500 m^2"),
@@ -219,6 +223,22 @@ def test_bad_input_exits_2_with_one_line(tmp_path, args, message):
     assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ")
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"frames": 2.5}, "^frames must be an integer from 2 to 10,000, got 2.5$"),
+    ({"phases": True}, "^phases must be an integer from 1 to 16, got True$"),
+    ({"points_density": math.nan}, "^--points-density must be a finite number > 0, got nan$"),
+    ({"scoring_density": -1.0}, "^--scoring-density must be a finite number > 0, got -1.0$"),
+    ({"resolution": (640.0, 480)}, r"^resolution width must be an integer from 4 to 16,384 pixels \(Blender renders "
+                                   r"smaller sides as 4\), got 640.0$"),
+])
+def test_run_config_numbers_are_one_line_errors(change, message):
+    """The API's RunConfig refuses what the CLI's parser cannot give it (floats, bools, NaN)."""
+    from generator.batch.config import RunConfig
+
+    with pytest.raises(ValueError, match=message):
+        RunConfig(**change).validated()
 
 
 def test_unwritable_output_folder(tmp_path):

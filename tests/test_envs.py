@@ -3,6 +3,7 @@
 import functools
 import json
 import math
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -107,6 +108,17 @@ def test_check_env_passes(rooms, action_space):
     assert set(obs) == {"depth", "label", "pose", "coverage"} and env.observation_space.contains(obs)
     assert info["steps"] == 0 and 0 < info["coverage"] < 1 and info["collided"] is False
     assert env.render().shape == (16, 48, 3)
+
+
+def test_a_bad_discrete_action_is_one_line(rooms):
+    env = make(rooms[:1])
+    env.reset(seed=0)
+    for bad in (5, -1, True, 1.0, "0"):
+        with pytest.raises(ValueError, match=r"^action must be an integer in 0\.\.4 \(forward, left, right, turn_left, "
+                                             rf"turn_right\), got {re.escape(repr(bad))}$"):
+            env.step(bad)
+    assert env.step(np.int64(3))[4]["steps"] == 1  # numpy integers are actions too
+    env.close()
 
 
 def test_check_env_on_a_made_env_then_the_env_still_works(rooms):

@@ -302,7 +302,7 @@ def test_bad_phases_get_one_line_and_exit_2(tmp_path):
         assert "Traceback" not in r.stderr
     from generator.scene import plan_site, site_params
 
-    with pytest.raises(ValueError, match="stage 3 is outside"):
+    with pytest.raises(ValueError, match="^stage must be an integer from 0 to 2, got 3$"):
         plan_site(0, site_params("small"), 3, 3)
 
 

@@ -332,6 +332,28 @@ def test_presets_resolve():
     assert resolve_settings(None).engine is None  # keep the .blend's settings
 
 
+@pytest.mark.parametrize("kwargs, message", [
+    ({"samples": 0}, "^samples must be an integer >= 1, got 0$"),
+    ({"samples": 4.0}, "^samples must be an integer >= 1, got 4.0$"),
+    ({"bounces": -1}, "^bounces must be an integer >= 0, got -1$"),
+    ({"threads": True}, r"^threads must be an integer >= 0 \(0 = all cores\), got True$"),
+    ({"adaptive_threshold": 1}, r"^adaptive_threshold must be a number in \[0, 1\) \(0 = off\), got 1$"),
+    ({"adaptive_threshold": math.nan}, r"^adaptive_threshold must be a number in \[0, 1\) \(0 = off\), got nan$"),
+    ({"resolution": (64.0, 48)}, "^resolution width must be an integer >= 1, got 64.0$"),
+    ({"resolution": (64, 0)}, "^resolution height must be an integer >= 1, got 0$"),
+    ({"resolution": 64}, r"^resolution must be \(width, height\), got 64$"),
+])
+def test_render_setting_numbers_are_one_line_errors(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        resolve_settings("preview", **kwargs)
+
+
+def test_render_setting_numbers_reach_blender_as_python_numbers():
+    s = resolve_settings("preview", samples=np.int64(3), threads=np.uint8(2), resolution=np.array([64, 48]))
+    assert (s.samples, s.threads, s.resolution) == (3, 2, (64, 48))
+    assert {type(v) for v in (s.samples, s.threads, *s.resolution)} == {int}
+
+
 def test_workbench_depth_and_labels(plane_blend):
     """EEVEE/Workbench have no object-index pass: labels come from rays through pixel centres."""
     ok, reason = egl.gpu_context_available()

@@ -1,6 +1,7 @@
 """The procedural site generator: determinism, physical plausibility, motion, taxonomy."""
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -234,14 +235,19 @@ def test_plans_are_deterministic_and_seed_dependent():
     "preset,overrides,message",
     [
         ("huge", {}, "unknown scene preset"),
-        ("medium", {"size": -10.0}, "site size"),
-        ("medium", {"density": -1.0}, "density"),
+        ("medium", {"size": -10.0}, r"^site size must be a number of metres in \[30, 1000\], got -10.0$"),
+        ("medium", {"size": math.nan}, r"^site size must be a number of metres in \[30, 1000\], got nan$"),
+        ("medium", {"density": -1.0}, r"^object density must be a number in \[0, 5\], got -1.0$"),
         ("medium", {"layout": "spiral"}, "layout"),
-        ("medium", {"phase": 1.5}, "phase"),
-        ("medium", {"frames": 0}, "animation length"),
+        ("medium", {"phase": 1.5}, r"^construction phase must be a number in \[0, 1\], got 1.5$"),
+        ("medium", {"phase": "0.5"}, r"^construction phase must be a number in \[0, 1\], got '0.5'$"),
+        ("medium", {"frames": 0}, "^animation length must be an integer >= 2 frames, got 0$"),
+        ("medium", {"frames": 250.0}, "^animation length must be an integer >= 2 frames, got 250.0$"),
+        ("medium", {"fps": math.inf}, "^fps must be a finite number > 0, got inf$"),
     ],
 )
 def test_bad_parameters(preset, overrides, message):
+    """One line naming the parameter, its valid values and the value given."""
     with pytest.raises(ValueError, match=message):
         site_params(preset, **overrides)
 

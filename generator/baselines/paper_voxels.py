@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_number
+
 _BITS = 21  # per axis: voxel indices in [-2^20, 2^20)
 _OFFSET = 1 << (_BITS - 1)
 
@@ -26,9 +28,7 @@ class FirstSeenVoxels:
     """Voxels of ``voxel`` metres, each with the first label seen, read out at its corner."""
 
     def __init__(self, voxel: float):
-        if not (voxel > 0 and np.isfinite(voxel)):
-            raise ValueError(f"voxel size must be a positive number of metres, got {voxel!r}")
-        self.voxel = float(voxel)
+        self.voxel = check_number("voxel size", voxel, 0, open_low=True, valid="a positive number of metres")
         self._keys = np.zeros(0, np.int64)  # sorted
         self._ijk = np.zeros((0, 3), np.int64)  # in the order of _keys
         self._labels = np.zeros(0, np.int64)

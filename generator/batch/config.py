@@ -8,6 +8,8 @@ import numpy as np
 
 from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
+from ..checks import check_integer, check_number
+
 # Bounds on what a run accepts, checked before any work (docs/guarantees.md).
 MIN_SIDE = 4  # Blender renders sides below 4 pixels as 4 (measured: 3x2 gives a 4x4 image)
 MAX_SIDE = 16384  # Blender clamps above 65536
@@ -45,15 +47,13 @@ class RunConfig:
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
         w, h = self.resolution
-        if not (MIN_SIDE <= w <= MAX_SIDE and MIN_SIDE <= h <= MAX_SIDE):
-            raise ValueError(f"resolution {w}x{h}: each side must be {MIN_SIDE} to {MAX_SIDE} pixels "
-                             f"(Blender renders smaller sides as {MIN_SIDE})")
+        for side, v in (("width", w), ("height", h)):
+            check_integer(f"resolution {side}", v, MIN_SIDE, MAX_SIDE, valid=f"an integer from {MIN_SIDE} to "
+                          f"{MAX_SIDE:,} pixels (Blender renders smaller sides as {MIN_SIDE})")
         if w * h > MAX_PIXELS:
             raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (3840x2160)")
-        if not 2 <= self.frames <= MAX_FRAMES:
-            raise ValueError(f"frames must be 2 to {MAX_FRAMES:,} per trajectory, got {self.frames}")
-        if not (isinstance(self.phases, int) and 1 <= self.phases <= MAX_PHASES):
-            raise ValueError(f"phases must be an integer from 1 to {MAX_PHASES}, got {self.phases!r}")
+        check_integer("frames", self.frames, 2, MAX_FRAMES)
+        check_integer("phases", self.phases, 1, MAX_PHASES)
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
             raise ValueError("--phases needs the outputs depth and instance (the change masks are made from them); "
                              "add them to --outputs")
@@ -67,6 +67,7 @@ class RunConfig:
         area = site_area_lower_bound(self.scene_preset)
         for name, density, limit in (("points-density", self.points_density, MAX_SURFACE_POINTS),
                                      ("scoring-density", self.scoring_density, MAX_SCORING_POINTS)):
+            check_number(f"--{name}", density, 0, open_low=True)
             if density * area < MIN_POINTS:
                 raise ValueError(f"--{name} {density:g}: a {self.scene_preset} site may have only {area:,.0f} m^2 of "
                                  f"surface, so under {MIN_POINTS} points; give at least {MIN_POINTS / area:g}")

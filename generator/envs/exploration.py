@@ -22,7 +22,7 @@ from gymnasium import spaces
 from ..checks import check_integer, check_number, check_seed
 from ..render_settings import PRESETS as RENDER_PRESETS
 from ..geometry.camera import heading_pose
-from .actions import CONTINUOUS_FIELDS, continuous_targets, discrete_target, heading_and_pitch
+from .actions import CONTINUOUS_FIELDS, DISCRETE_ACTIONS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
 
 MAX_RESOLUTION = 4096  # pixels, width and height of the observations
@@ -331,9 +331,8 @@ def _resolution(value) -> tuple[int, int]:
 def _discrete(action) -> int:
     if isinstance(action, np.ndarray) and action.shape == ():
         action = action.item()
-    if isinstance(action, bool) or not isinstance(action, (int, np.integer)) or not 0 <= action <= 4:
-        raise ValueError(f"action must be an integer in 0..4 (forward, left, right, turn left, turn right), got {action!r}")
-    return int(action)
+    return check_integer("action", action, 0, len(DISCRETE_ACTIONS) - 1,
+                         valid=f"an integer in 0..4 ({', '.join(DISCRETE_ACTIONS)})")
 
 
 def _sources(seeds, blend_files) -> list[tuple[str, object]]:

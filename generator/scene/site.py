@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..checks import check_integer, check_number
 from ..geometry.seeding import stream
 from . import props, structures, vehicles
 from .assets import Asset, Footprint, Part, overlaps
@@ -44,18 +45,14 @@ class SiteParams:
     fps: float = 10.0
 
     def validated(self) -> "SiteParams":
-        if not (isinstance(self.size, (int, float)) and math.isfinite(self.size) and 30 <= self.size <= 1000):
-            raise ValueError(f"site size must be a number of metres in [30, 1000], got {self.size!r}")
-        if not (isinstance(self.density, (int, float)) and math.isfinite(self.density) and 0 <= self.density <= 5):
-            raise ValueError(f"object density must be in [0, 5], got {self.density!r}")
+        check_number("site size", self.size, 30, 1000, valid="a number of metres in [30, 1000]")
+        check_number("object density", self.density, 0, 5)
         if self.layout not in LAYOUTS:
             raise ValueError(f"unknown layout {self.layout!r}; choose one of {', '.join(LAYOUTS)}")
-        if self.phase is not None and not (0 <= self.phase <= 1):
-            raise ValueError(f"construction phase must be in [0, 1], got {self.phase!r}")
-        if not (isinstance(self.frames, int) and self.frames >= 2):
-            raise ValueError(f"animation length must be an integer >= 2 frames, got {self.frames!r}")
-        if not (self.fps > 0):
-            raise ValueError(f"fps must be positive, got {self.fps!r}")
+        if self.phase is not None:
+            check_number("construction phase", self.phase, 0, 1)
+        check_integer("animation length", self.frames, 2, valid="an integer >= 2 frames")
+        check_number("fps", self.fps, 0, open_low=True)
         return self
 
 

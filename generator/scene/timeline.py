@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from ..checks import check_integer
 from ..geometry.seeding import stream
 from . import props, structures
 from .assets import Asset
@@ -39,10 +40,8 @@ DELIVERY_UID = 1_000_000  # uid of the j-th delivery of stage k: k * DELIVERY_UI
 
 def check_stage(stage, stages) -> None:
     """ValueError unless ``stages`` is 1..MAX_STAGES and ``stage`` is 0..stages-1."""
-    if isinstance(stages, bool) or not isinstance(stages, (int, np.integer)) or not 1 <= stages <= MAX_STAGES:
-        raise ValueError(f"stages must be an integer from 1 to {MAX_STAGES}, got {stages!r}")
-    if isinstance(stage, bool) or not isinstance(stage, (int, np.integer)) or not 0 <= stage < stages:
-        raise ValueError(f"stage {stage!r} is outside the timeline's stages 0 to {stages - 1}")
+    stages = check_integer("stages", stages, 1, MAX_STAGES)
+    check_integer("stage", stage, 0, stages - 1)
 
 
 def object_name(label: str, uid: int, part: int) -> str:
