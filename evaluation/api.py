@@ -12,7 +12,7 @@ from exporters.manifest import read_manifest, stage_count, timeline_stage
 from exporters.ply import PlyError, read_ply_comments
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
-from .inputs import Cloud, InputError, check_label_range, read_cloud, read_label_table
+from .inputs import Cloud, InputError, check_label_range, check_metres, read_cloud, read_label_table
 from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, fscore, iou_per_class, match_categories,
                       reconstruction_metrics, voxel_downsample)
 
@@ -96,12 +96,11 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
 
     Returns (results, context): results is the JSON document (metrics, parameters,
     versions); context holds the arrays used (for the coloured PLY)."""
-    if not (np.isfinite(tau) and tau > 0):
-        raise InputError(f"tau must be a positive number of metres, got {tau}")
-    if crop_margin is not None and not (np.isfinite(crop_margin) and crop_margin >= 0):
-        raise InputError(f"crop_margin must be a non-negative number of metres, got {crop_margin}")
-    if voxel is not None and not (np.isfinite(voxel) and voxel > 0):
-        raise InputError(f"voxel must be a positive number of metres, got {voxel}")
+    check_metres("tau", tau)
+    if crop_margin is not None:
+        check_metres("crop_margin", crop_margin, or_equal=True)
+    if voxel is not None:
+        check_metres("voxel", voxel)
     if isinstance(gt, Cloud):
         gt_cloud, names = gt, label_names
     else:
@@ -229,9 +228,7 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
     except GroundTruthError as exc:
         raise InputError(str(exc)) from None
     if max_depth is not None:
-        if not (np.isfinite(max_depth) and max_depth > scene.near):
-            raise InputError(f"max depth must be a number of metres above {scene.near}, got {max_depth}")
-        scene.far = float(max_depth)
+        scene.far = check_metres("max_depth", max_depth, scene.near)
     poses = trajectory if isinstance(trajectory, Poses) else read_poses(trajectory, scene, frames)
     clamped = 0
     if poses.frames is not None:

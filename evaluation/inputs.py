@@ -11,10 +11,22 @@ from pathlib import Path
 import numpy as np
 
 from exporters.ply import PlyError, read_ply
+from generator.checks import check_number
 
 
 class InputError(ValueError):
     """Bad input to the evaluation (one line: what is wrong, what to do)."""
+
+
+def check_metres(name: str, value, low: float = 0.0, *, or_equal: bool = False) -> float:
+    """``value`` as a float if it is a finite number of metres above ``low`` (``or_equal``:
+    or equal to it); else an :class:`InputError` naming ``name``, the range and the value."""
+    side = "non-negative" if or_equal else "positive"
+    valid = f"a {side} number of metres" if low == 0 else f"a number of metres {'>=' if or_equal else 'above'} {low:g}"
+    try:
+        return check_number(name, value, low, open_low=not or_equal, valid=valid)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 MAX_COORDINATE = 1e9  # metres: beyond it a coordinate is refused (squared distances must stay finite)

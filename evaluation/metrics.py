@@ -17,7 +17,7 @@ import numpy as np
 
 from generator.geometry.voxels import majority_labels
 
-from .inputs import Cloud, InputError
+from .inputs import Cloud, InputError, check_metres
 
 
 DEFAULT_TAU = 0.1
@@ -165,8 +165,7 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
     """
     pred_cloud, gt_cloud = Cloud(pred, pred_labels, "pred"), Cloud(gt, gt_labels, "gt")  # checked: one-line errors
     pred, gt, pred_labels, gt_labels = pred_cloud.points, gt_cloud.points, pred_cloud.labels, gt_cloud.labels
-    if not (np.isfinite(tau) and tau > 0):
-        raise InputError(f"tau must be a positive number of metres, got {tau}")
+    check_metres("tau", tau)
     if len(pred) == 0 or len(gt) == 0:
         raise InputError("both clouds need at least one point")
     nn = neighbours if neighbours is not None else Neighbours.compute(pred, gt)

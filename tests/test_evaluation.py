@@ -2,6 +2,7 @@
 from the stored ground truth against the generator's own history, and bad input on the CLI."""
 
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from hypothesis import strategies as st
 from conftest import ROOT
 from evaluation import Cloud, load_gt_cloud, reconstruction_metrics, score_coverage, score_reconstruction, voxel_downsample
 from evaluation.coverage import coverage_auc
+from evaluation.inputs import InputError
 from exporters.ply import read_ply, write_ply
 
 
@@ -145,6 +147,22 @@ def test_order_invariance_and_direction_swap(a, b, rnd):
         assert s["semantic_chamfer_pred_to_gt"] == pytest.approx(t["semantic_chamfer_gt_to_pred"])
 
 
+@pytest.mark.parametrize("kwargs, message", [
+    ({"tau": 0.0}, "^tau must be a positive number of metres, got 0.0$"),
+    ({"tau": math.nan}, "^tau must be a positive number of metres, got nan$"),
+    ({"tau": "0.05"}, "^tau must be a positive number of metres, got '0.05'$"),
+    ({"crop_margin": -3.0}, "^crop_margin must be a non-negative number of metres, got -3.0$"),
+    ({"voxel": math.inf}, "^voxel must be a positive number of metres, got inf$"),
+])
+def test_scoring_numbers_are_one_line_input_errors(kwargs, message):
+    """Checked before any file is read (the paths here do not exist)."""
+    with pytest.raises(InputError, match=message):
+        score_reconstruction("missing.ply", "missing", **kwargs)
+    if "tau" in kwargs:
+        with pytest.raises(InputError, match=message):
+            reconstruction_metrics(np.eye(3), np.eye(3), tau=kwargs["tau"])
+
+
 # ---- on the real pipeline's output ----------------------------------------------------------------
 
 @pytest.mark.parametrize("kind", ["orbit", "spline"])
@@ -159,6 +177,8 @@ def test_coverage_from_stored_mesh_equals_the_simulators_history(seed_folder, ki
     a = score_coverage(seed_folder, seed_folder / kind / "sparse" / "0", frames="first")
     b = score_coverage(seed_folder, seed_folder / kind / "trajectory.npz", frames="first")
     np.testing.assert_allclose(a["coverage"], b["coverage"], atol=1e-12)
+    with pytest.raises(InputError, match=r"^max_depth must be a number of metres above 0\.\d+, got 0\.01$"):
+        score_coverage(seed_folder, seed_folder / kind / "trajectory.npz", max_depth=0.01)
 
 
 def test_perfect_and_noisy_reconstruction_of_the_real_gt(seed_folder):
