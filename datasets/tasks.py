@@ -12,6 +12,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from generator.checks import check_integer
+
 from .scene import DatasetError, Scene, Sequence, check_index
 
 
@@ -25,8 +27,8 @@ def _scenes(paths: str | Path | Scene | Iterable) -> list[Scene]:
 
 
 def _check_count(name: str, value) -> None:
-    if value is not None and not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
-        raise ValueError(f"{name} must be None or an integer >= 1, got {value!r}")
+    if value is not None:
+        check_integer(name, value, 1, valid="None or an integer >= 1")
 
 
 def _to_tensor(sample: dict) -> dict:
@@ -103,8 +105,7 @@ class ClipDataset(_Base):
                  keys: tuple[str, ...] | None = None):
         super().__init__(transform, as_tensor)
         self.keys = keys
-        if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1 for v in (length, stride)):
-            raise ValueError(f"length and stride must be integers >= 1, got {length!r}, {stride!r}")
+        length, stride = check_integer("length", length, 1), check_integer("stride", stride, 1)
         _check_count("max_points", max_points)
         self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
         self.index: list[tuple[int, str, int]] = []

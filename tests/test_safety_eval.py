@@ -232,9 +232,14 @@ def test_every_accessor_follows_python_indexing(seed_folder):
     assert frames[-1]["index"] == 2 and frames[-1]["trajectory"] == "spline"
     with pytest.raises(IndexError, match=r"FrameDataset item index 6 out of range: valid indices are -6\.\.5"):
         frames[6]
-    for bad in (lambda: ClipDataset(seed_folder, length=0), lambda: ClipDataset(seed_folder, max_points=-1),
-                lambda: ClipDataset(seed_folder, length=2.5), lambda: PointCloudDataset(seed_folder, num_points=0)):
-        with pytest.raises(ValueError, match="integer"):
+    for bad, message in ((lambda: ClipDataset(seed_folder, length=0), "^length must be an integer >= 1, got 0$"),
+                         (lambda: ClipDataset(seed_folder, max_points=-1),
+                          "^max_points must be None or an integer >= 1, got -1$"),
+                         (lambda: ClipDataset(seed_folder, length=2.5), "^length must be an integer >= 1, got 2.5$"),
+                         (lambda: ClipDataset(seed_folder, stride=True), "^stride must be an integer >= 1, got True$"),
+                         (lambda: PointCloudDataset(seed_folder, num_points=0),
+                          "^num_points must be None or an integer >= 1, got 0$")):
+        with pytest.raises(ValueError, match=message):
             bad()
 
 

@@ -124,6 +124,12 @@ def test_class_names_are_the_label_table(recording, seed_folder):
         assert (rgba >> 24, (rgba >> 16) & 255, (rgba >> 8) & 255) == tuple(int(c) for c in colors[i])
 
 
+@pytest.mark.parametrize("cap", [0, 2.5, True])
+def test_the_subsampling_rule_takes_a_whole_cap(cap):
+    with pytest.raises(ValueError, match=rf"^max_points must be an integer >= 1, got {cap!r}$"):
+        subsample_stride(10, cap)
+
+
 def test_not_a_seed_folder_is_one_line_and_exit_2(tmp_path):
     (tmp_path / "notes.txt").write_text("not a seed")
     out = tmp_path / "x.rrd"

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from exporters.palette import UNLABELLED, label_colors
+from generator.checks import check_integer
 
 APPLICATION_ID = "buildee-sites"
 MAX_POINTS = 1_000_000  # default cap on the points of one logged cloud
@@ -22,9 +23,7 @@ TIME_TIMELINE = "time"    # duration timeline: the frame's timestamp, seconds
 def subsample_stride(n: int, max_points: int) -> int:
     """The stated rule: a cloud of ``n`` points is logged as ``points[::k]`` with
     ``k = ceil(n / max_points)`` (every point when it fits), i.e. ``ceil(n / k)`` points."""
-    if max_points < 1:
-        raise ValueError(f"max_points must be a positive integer, got {max_points}")
-    return max(1, math.ceil(n / max_points))
+    return max(1, math.ceil(n / check_integer("max_points", max_points, 1)))
 
 
 def subsampled_count(n: int, max_points: int) -> int:
