@@ -15,6 +15,8 @@ from typing import Callable
 
 import numpy as np
 
+from generator.checks import check_integer
+
 from .scene import DatasetError, Sequence, check_index
 from .tasks import _Base
 
@@ -74,10 +76,10 @@ class ChangePairDataset(_Base):
         for s, tl in enumerate(self.timelines):
             ks = range(1, tl.stages) if pairs is None else pairs
             for k in ks:
-                if not (isinstance(k, (int, np.integer)) and 1 <= k < tl.stages):
-                    raise ValueError(f"pair {k!r}: {tl.path} has pairs 1 to {tl.stages - 1} (stage k-1 to stage k)")
+                k = check_integer("pair", k, 1, tl.stages - 1,
+                                  valid=f"an integer from 1 to {tl.stages - 1} for {tl.path} (stage k-1 to stage k)")
                 for kind in trajectories or tl.trajectories:
-                    self.index += [(s, int(k), kind, i) for i in range(len(tl.sequence(k, kind)))]
+                    self.index += [(s, k, kind, i) for i in range(len(tl.sequence(k, kind)))]
 
     def __len__(self) -> int:
         return len(self.index)

@@ -26,6 +26,7 @@ import numpy as np
 from PIL import Image
 
 from exporters.modalities import MODALITIES
+from generator.checks import check_integer
 from generator.geometry.boxes import tight_boxes
 
 EDGE_RATIO = 1.05  # four source depths spanning more than 5% make a depth edge: nearest there
@@ -80,9 +81,8 @@ class Crop:
     """Keep the window x in [x0, x0 + width), y in [y0, y0 + height) (pixels)."""
 
     def __init__(self, x0: int, y0: int, width: int, height: int):
-        if min(width, height) <= 0 or min(x0, y0) < 0:
-            raise ValueError(f"crop window must have a non-negative origin and a positive size, got {(x0, y0, width, height)}")
-        self.x0, self.y0, self.width, self.height = int(x0), int(y0), int(width), int(height)
+        self.x0, self.y0 = check_integer("Crop x0", x0, 0), check_integer("Crop y0", y0, 0)
+        self.width, self.height = check_integer("Crop width", width, 1), check_integer("Crop height", height, 1)
 
     def __call__(self, sample: dict) -> dict:
         out = dict(sample)
@@ -158,9 +158,7 @@ class Resize:
     """Resize to ``width`` x ``height`` pixels."""
 
     def __init__(self, width: int, height: int):
-        if min(width, height) <= 0:
-            raise ValueError(f"resize needs a positive size, got {width}x{height}")
-        self.width, self.height = int(width), int(height)
+        self.width, self.height = check_integer("Resize width", width, 1), check_integer("Resize height", height, 1)
 
     def __call__(self, sample: dict) -> dict:
         out = dict(sample)

@@ -157,6 +157,19 @@ def test_resize_and_crop_keep_projections(seed_folder):
     assert ToLinear()({"rgb": np.full((1, 1, 3), 0.5, np.float32)})["rgb"][0, 0, 0] == pytest.approx(0.21404, abs=1e-4)
 
 
+@pytest.mark.parametrize("make, message", [
+    (lambda: Crop(-1, 0, 8, 8), "^Crop x0 must be an integer >= 0, got -1$"),
+    (lambda: Crop(0, 0.5, 8, 8), "^Crop y0 must be an integer >= 0, got 0.5$"),
+    (lambda: Crop(0, 0, 8, 0), "^Crop height must be an integer >= 1, got 0$"),
+    (lambda: Resize(24.0, 16), "^Resize width must be an integer >= 1, got 24.0$"),
+    (lambda: Resize(24, -16), "^Resize height must be an integer >= 1, got -16$"),
+])
+def test_transform_sizes_are_one_line_errors(make, message):
+    """A fractional window used to be truncated silently; now it is refused."""
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
 def _read_items(args):
     folder, indices = args
     ds = FrameDataset(folder)

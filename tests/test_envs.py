@@ -330,6 +330,14 @@ def test_async_vector_env_steps_and_resets(rooms):
         envs.close()
 
 
+@pytest.mark.parametrize("angle", [0, -10.0, 180.5, math.nan, "22.5"])
+def test_modified_random_walk_checks_its_angle(angle):
+    from generator.envs.policies import ModifiedRandomWalk
+
+    with pytest.raises(ValueError, match=rf"^angle must be a number of degrees in \(0, 180\], got {re.escape(repr(angle))}$"):
+        ModifiedRandomWalk(angle=angle)
+
+
 def test_modified_random_walk_turns_only_after_a_blocked_forward_move(rooms):
     from generator.envs.policies import FORWARD, TURN_LEFT, TURN_RIGHT, ModifiedRandomWalk
 

@@ -2,6 +2,7 @@
 checked against independent computations from the stages' own files."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -331,5 +332,7 @@ def test_loaders_pair_frames_with_their_masks(timeline):
     assert np.array_equal(clouds["after"]["added"], changes.pair(0, 1).points_added)
     assert [changes.names[u] for u in clouds["before"]["union_instance"][:5]] == \
         [changes.names[changes.stage_tables[0][i]] for i in clouds["before"]["instance"][:5]]
-    with pytest.raises(ValueError, match="pairs 1 to 2"):
-        ChangePairDataset(seed, pairs=[3])
+    for bad in (3, 0, 1.0):
+        with pytest.raises(ValueError, match=rf"^pair must be an integer from 1 to 2 for {re.escape(str(seed))} "
+                                             rf"\(stage k-1 to stage k\), got {bad!r}$"):
+            ChangePairDataset(seed, pairs=[bad])

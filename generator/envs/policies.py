@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_number
+
 FORWARD, LEFT, RIGHT, TURN_LEFT, TURN_RIGHT = range(5)
 
 
@@ -28,9 +30,7 @@ class RandomWalk:
 
 class ModifiedRandomWalk:
     def __init__(self, angle: float = 22.5, seed: int = 0):
-        if not 0 < angle <= 180:
-            raise ValueError(f"angle must be in (0, 180] degrees, got {angle!r}")
-        self.angle = float(angle)
+        self.angle = check_number("angle", angle, 0, 180, open_low=True, valid="a number of degrees in (0, 180]")
         self.rng = np.random.default_rng(seed)
         self.turns_left = 0  # turn actions still to take (negative: to the left)
         self.last = None
