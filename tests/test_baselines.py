@@ -47,11 +47,12 @@ def test_paper_voxel_rule_corners_and_first_label():
 
 
 @pytest.mark.parametrize("voxel", [0, -0.5, math.inf, math.nan, "0.5", True])
-def test_paper_voxel_size_is_checked(voxel):
+def test_voxel_sizes_are_checked(voxel):
     from generator.baselines.paper_voxels import FirstSeenVoxels
 
-    with pytest.raises(ValueError, match=f"^voxel size must be a positive number of metres, got {re.escape(repr(voxel))}$"):
-        FirstSeenVoxels(voxel)
+    for fusion in (FirstSeenVoxels, VoxelMap):
+        with pytest.raises(ValueError, match=f"^voxel size must be a positive number of metres, got {re.escape(repr(voxel))}$"):
+            fusion(voxel)
 
 
 def baselines(*args):

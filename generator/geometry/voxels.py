@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_number
+
 
 def majority_labels(group: np.ndarray, label: np.ndarray, count: np.ndarray | None = None,
                     num_groups: int | None = None) -> np.ndarray:
@@ -32,9 +34,7 @@ class VoxelMap:
     its label is the most frequent one (ties: the smallest id)."""
 
     def __init__(self, voxel: float):
-        if not (voxel > 0 and np.isfinite(voxel)):
-            raise ValueError(f"voxel size must be a positive number of metres, got {voxel!r}")
-        self.voxel = float(voxel)
+        self.voxel = check_number("voxel size", voxel, 0, open_low=True, valid="a positive number of metres")
         self._keys: list[np.ndarray] = []  # rows: (i, j, k, label)
         self._counts: list[np.ndarray] = []
 
