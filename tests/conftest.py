@@ -38,6 +38,15 @@ def finished(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def plane_blend(tmp_path_factory):
+    """tests/scenes.py's tilted plane as a .blend, built once for test_render.py and
+    test_render_settings.py."""
+    import scenes  # imports bpy: only when a test asks for the scene
+
+    return scenes.tilted_plane_scene(tmp_path_factory.mktemp("render") / "plane.blend")
+
+
+@pytest.fixture(scope="session")
 def seed_folder(finished):
     """The seed folder of :func:`finished` (seed 4)."""
     return finished[0] / "seed_000004"

@@ -115,3 +115,18 @@ def make_linear(obj) -> None:
     for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
         for key in fc.keyframe_points:
             key.interpolation = "LINEAR"
+
+
+TILTED_PLANE_SIZE = (80, 60)  # (width, height) in pixels of tilted_plane_scene
+
+
+def tilted_plane_scene(path: Path) -> Path:
+    """A large plane ("Board") through (0, 10, 0), tilted 30 degrees about X and 20 about Z, seen
+    by a level camera at the origin looking along +Y; a crate and a thin pole in front of it."""
+    new_scene(*TILTED_PLANE_SIZE)
+    add_plane("Board", (200, 200), (0, 10, 0), rotation=(math.radians(90 - 30), 0, math.radians(20)))
+    add_box("Crate", (1.5, 1.5, 1.5), (1.2, 6, -0.8))
+    add_cylinder("Pole", 0.03, 6, (-1.0, 5, 0), segments=12)
+    add_sun()
+    look_along_y((0, 0, 0), lens=30)
+    return save(path)
