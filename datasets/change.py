@@ -17,7 +17,7 @@ import numpy as np
 
 from generator.checks import check_integer
 
-from .scene import DatasetError, Sequence, check_index
+from .scene import DatasetError, Sequence, check_index, read_point_cloud
 from .tasks import _Base
 
 
@@ -106,9 +106,8 @@ def change_clouds(path: str | Path | Timeline, before: int, after: int) -> dict:
     dicts with xyz (N, 3) float32 metres, label, instance (stage ids) and union_instance (ids
     of changes.h5's instance table) (N,) int32, and ``removed`` (stage ``before``) /
     ``added`` (stage ``after``) (N,) bool; ``status`` per union instance (exporters.changes.STATUS
-    codes, -1 absent) and ``transform`` (U, 4, 4) for moved ones; ``names`` the union table."""
-    from exporters.ply import read_ply
-
+    codes, -1 absent) and ``transform`` (U, 4, 4) for moved ones; ``names`` the union table.
+    The stages' points.ply are read by :func:`datasets.scene.read_point_cloud` (its checks and errors)."""
     tl = path if isinstance(path, Timeline) else Timeline(path)
     try:
         pair = tl.changes.pair(before, after)
@@ -117,8 +116,8 @@ def change_clouds(path: str | Path | Timeline, before: int, after: int) -> dict:
     out = {"status": pair.status, "transform": pair.transform, "names": tl.changes.names}
     for key, stage, flag, values in (("before", before, "removed", pair.points_removed),
                                      ("after", after, "added", pair.points_added)):
-        v = read_ply(tl.path / f"phase_{stage}" / "ground_truth" / "points.ply").vertex
+        cloud = read_point_cloud(tl.path / f"phase_{stage}")
         table = tl.changes.stage_tables[stage]
-        out[key] = {"xyz": np.stack([v[c] for c in "xyz"], 1), "label": v["label"], "instance": v["instance"],
-                    "union_instance": table[v["instance"]], flag: values}
+        out[key] = {"xyz": cloud["xyz"], "label": cloud["label"], "instance": cloud["instance"],
+                    "union_instance": table[cloud["instance"]], flag: values}
     return out

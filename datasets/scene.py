@@ -70,25 +70,18 @@ def read_point_cloud(folder: str | Path, static_only: bool = False) -> dict:
     timeline seed), read from its ``ground_truth/points.ply`` (written by exporters/ground_truth.py):
     xyz (N, 3) float32 metres, label, instance (N,) int32, dynamic (N,) bool (objects at the
     first animation frame); ``static_only`` keeps the points that are not dynamic. A missing
-    or damaged file, one of another format version or one without the label, instance and
-    dynamic properties raises a :class:`DatasetError` naming the file."""
-    from exporters.ground_truth import GroundTruthError, check_ply_version
-    from exporters.ply import PlyError, read_ply
+    or damaged file, one of another format version or one lacking a property of
+    ``exporters.ground_truth.POINT_PROPERTIES`` (checked by ``exporters.ground_truth.read_points``)
+    raises a :class:`DatasetError` naming the file."""
+    from exporters.ground_truth import GroundTruthError, read_points
 
     path = Path(folder) / "ground_truth" / "points.ply"
     if not path.is_file():
         raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
     try:
-        d = read_ply(path)
-        check_ply_version(path, d.comments)
-    except PlyError as exc:
-        raise DatasetError(f"{exc}; regenerate this seed with python -m generator") from None
+        d = read_points(path.parent)
     except GroundTruthError as exc:
         raise DatasetError(str(exc)) from None
-    missing = [k for k in ("label", "instance", "dynamic") if k not in d.vertex]
-    if missing:
-        raise DatasetError(f"{path}: no {', '.join(missing)} property; not a ground-truth cloud of "
-                           "python -m generator, regenerate this seed")
     out = {"xyz": np.stack([d.vertex[c] for c in "xyz"], 1), "label": d.vertex["label"],
            "instance": d.vertex["instance"], "dynamic": d.vertex["dynamic"].astype(bool)}
     if static_only:

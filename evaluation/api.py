@@ -7,12 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters.ground_truth import GroundTruthError, check_ply_version, read_ground_truth
+from exporters.ground_truth import GroundTruthError, read_ground_truth, read_points
 from exporters.manifest import read_manifest, stage_count, timeline_stage
-from exporters.ply import PlyError, read_ply_comments
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
-from .inputs import Cloud, InputError, check_label_range, check_metres, read_cloud, read_label_table
+from .inputs import Cloud, InputError, check_label_range, check_metres, ply_cloud, read_cloud, read_label_table
 from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, fscore, iou_per_class, match_categories,
                       reconstruction_metrics, voxel_downsample)
 
@@ -57,16 +56,19 @@ def load_gt_cloud(path: str | Path, include_dynamic: bool = True) -> tuple[Cloud
     beside it, else the generator's taxonomy)."""
     path = Path(path)
     if path.is_dir():
-        path = _seed_folder_gt(path) / "points.ply"
+        gt = _seed_folder_gt(path)
         try:
-            check_ply_version(path, read_ply_comments(path))
-        except (GroundTruthError, PlyError) as exc:
+            ply = read_points(gt)  # the one reader of points.ply: format version and properties checked
+        except GroundTruthError as exc:
             raise InputError(str(exc)) from None
+        path, near = gt / "points.ply", None
+        cloud = ply_cloud(ply, path)
     elif not path.exists():
         raise InputError(f"{path}: no such file or folder")
-    # a PLY names its labels in its header; other files may hold class names, read with the table beside them
-    near = None if path.suffix.lower() == ".ply" else _label_table_near(path)
-    cloud = read_cloud(path, label_names=near)
+    else:
+        # a PLY names its labels in its header; other files may hold class names, read with the table beside them
+        near = None if path.suffix.lower() == ".ply" else _label_table_near(path)
+        cloud = read_cloud(path, label_names=near)
     if not include_dynamic and cloud.dynamic is not None:
         cloud = cloud.subset(~cloud.dynamic)
     return cloud, cloud.names or near or _label_table_near(path)

@@ -82,20 +82,26 @@ def score_change_masks(gt: np.ndarray, pred: np.ndarray) -> dict:
 def gt_change_cloud(seed: Path, before: int, after: int):
     """(xyz (N, 3), change codes (N,)) of the ground truth between two consecutive stages, and
     the Changes read from changes.h5 (frame masks included)."""
-    from exporters.changes import read_changes
-    from exporters.ply import read_ply
-
     changes = _changes(seed)
     _check_stages(changes, seed, before, after)
     pair = changes.pair(before, after)
-    xyz_b = read_ply(seed / f"phase_{after}" / "ground_truth" / "points.ply").points
-    xyz_a = read_ply(seed / f"phase_{before}" / "ground_truth" / "points.ply").points
+    xyz_b, xyz_a = _stage_points(seed, after), _stage_points(seed, before)
     if len(xyz_b) != len(pair.points_added) or len(xyz_a) != len(pair.points_removed):
         raise InputError(f"{seed}: changes.h5 does not match the stages' points.ply (regenerate the seed)")
     xyz = np.concatenate([xyz_b[pair.points_added], xyz_a[pair.points_removed]])
     code = np.concatenate([np.full(int(pair.points_added.sum()), CLOUD_CLASSES["added"]),
                            np.full(int(pair.points_removed.sum()), CLOUD_CLASSES["removed"])])
     return xyz, code, changes
+
+
+def _stage_points(seed: Path, stage: int) -> np.ndarray:
+    """(N, 3) float64 of stage ``stage``'s points.ply, read by exporters.ground_truth.read_points."""
+    from exporters.ground_truth import GroundTruthError, read_points
+
+    try:
+        return read_points(seed / f"phase_{stage}" / "ground_truth").points
+    except GroundTruthError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _changes(seed: Path):

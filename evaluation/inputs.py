@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exporters.ply import PlyError, read_ply
+from exporters.ply import PlyData, PlyError, read_ply
 from generator.checks import check_number
 
 
@@ -130,11 +130,20 @@ def _split_columns(table: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarra
     return table[:, :3], (table[:, 3] if table.shape[1] == 4 else None)
 
 
-def _read_ply_cloud(path: Path) -> tuple[np.ndarray, np.ndarray | None, list[str] | None, np.ndarray | None]:
+# a cloud file's columns: points, labels, the header's label table, dynamic, observable
+Columns = tuple[np.ndarray, np.ndarray | None, list[str] | None, np.ndarray | None, np.ndarray | None]
+
+
+def _read_ply_cloud(path: Path) -> Columns:
     try:
         d = read_ply(path)
     except PlyError as exc:
         raise InputError(str(exc)) from None
+    return _ply_columns(d, path)
+
+
+def _ply_columns(d: PlyData, path: Path) -> Columns:
+    """points, labels, the header's label table, dynamic and observable of a PLY read from ``path``."""
     label = d.vertex.get("label", d.vertex.get("class", d.vertex.get("semantic")))
     names = None
     for c in d.comments:  # our own files name their label table
@@ -186,6 +195,19 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
         if isinstance(exc, InputError):
             raise
         raise InputError(f"{path}: unreadable ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
+    return _checked_cloud(path, points, labels, file_names, dynamic, observable, labels_path, label_names)
+
+
+def ply_cloud(ply: PlyData, path: str | Path) -> Cloud:
+    """The :class:`Cloud` of a PLY already read from ``path`` (the ground truth's, read by
+    ``exporters.ground_truth.read_points``), checked as :func:`read_cloud` checks a PLY file."""
+    path = Path(path)
+    return _checked_cloud(path, *_ply_columns(ply, path))
+
+
+def _checked_cloud(path: Path, points, labels, file_names, dynamic, observable, labels_path=None,
+                   label_names=None) -> Cloud:
+    """The :class:`Cloud` of columns read from ``path`` (:func:`read_cloud`'s arguments), checked."""
     points = np.asarray(points)
     if points.dtype.kind not in "iuf":
         raise InputError(f"{path}: coordinates are not real numbers (dtype {points.dtype})")

@@ -37,6 +37,7 @@ from .palette import label_colors
 from .ply import PlyData, PlyError, read_ply, write_ply
 
 FILES = ("points.ply", "mesh.ply", "scene.h5")
+POINT_PROPERTIES = ("x", "y", "z", "red", "green", "blue", "label", "instance", "dynamic", "observable")  # points.ply
 DEFAULT_SCORING_DENSITY = 100.0  # points per square metre: mean spacing ~0.1 m, mean NN distance ~0.05 m
 
 
@@ -205,17 +206,39 @@ class GroundTruthError(ValueError):
     """A ground-truth folder or file that cannot be used (the message says why)."""
 
 
+def _read_versioned_ply(path: Path) -> PlyData:
+    """A ground-truth PLY of this format version; else a one-line :class:`GroundTruthError`."""
+    try:
+        data = read_ply(path)
+    except PlyError as exc:
+        raise GroundTruthError(f"{exc}; regenerate this seed with python -m generator") from None
+    check_ply_version(path, data.comments)
+    return data
+
+
+def read_points(folder: str | Path) -> PlyData:
+    """The ground-truth scoring cloud ``folder/points.ply`` (``folder``: a seed's ground_truth/
+    folder, or a timeline stage's ``phase_K/ground_truth/``): the vertex properties of
+    :data:`POINT_PROPERTIES` (module docstring) and the header comments (format version, units,
+    label table, scoring density, seed). A missing or damaged file, one of another format
+    version or one without one of those properties raises a one-line :class:`GroundTruthError`
+    naming the file."""
+    path = Path(folder) / "points.ply"
+    points = _read_versioned_ply(path)
+    missing = [k for k in POINT_PROPERTIES if k not in points.vertex]
+    if missing:
+        raise GroundTruthError(f"{path}: no {', '.join(missing)} property; not a ground-truth cloud of "
+                               "python -m generator, regenerate this seed")
+    return points
+
+
 def read_mesh(folder: str | Path) -> PlyData:
     """The ground-truth mesh ``folder/mesh.ply`` (``folder``: a seed's ground_truth/ folder):
     vertices x, y, z (float32 world metres) coloured by label, ``faces`` (F, 3) and the face
     properties label and instance. A missing or damaged file, one of another format version or
     one without faces raises a one-line :class:`GroundTruthError` naming the file."""
     path = Path(folder) / "mesh.ply"
-    try:
-        mesh = read_ply(path)
-    except PlyError as exc:
-        raise GroundTruthError(f"{exc}; regenerate this seed with python -m generator") from None
-    check_ply_version(path, mesh.comments)
+    mesh = _read_versioned_ply(path)
     if mesh.faces is None:
         raise GroundTruthError(f"{path}: no faces; not the ground-truth mesh of python -m generator, "
                                "regenerate this seed")
@@ -259,8 +282,8 @@ class GroundTruthScene:
         return {int(i): row[k] for k, i in enumerate(self.dynamic_parts)}
 
     def scoring_points(self) -> PlyData:
-        """The labelled scoring cloud (points.ply)."""
-        return read_ply(self.folder / "points.ply")
+        """The labelled scoring cloud (points.ply, read by :func:`read_points`)."""
+        return read_points(self.folder)
 
 
 def read_ground_truth(folder: str | Path) -> GroundTruthScene:

@@ -13,7 +13,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from .changes import read_changes
-from .ply import read_ply
+from .ground_truth import read_points
 
 COLOURS = {"unchanged": (150, 150, 150), "added": (30, 170, 60), "removed": (210, 40, 40)}
 
@@ -42,7 +42,7 @@ def change_map(xyz_before: np.ndarray, removed: np.ndarray, xyz_after: np.ndarra
 def timeline_preview(folder: str | Path, stages: int, kind: str, size: int = 360) -> Path:
     folder = Path(folder)
     changes = read_changes(folder, masks=False)
-    clouds = [read_ply(folder / f"phase_{k}" / "ground_truth" / "points.ply").points for k in range(stages)]
+    clouds = [read_points(folder / f"phase_{k}" / "ground_truth").points for k in range(stages)]
     frames = [np.asarray(Image.open(folder / f"phase_{k}" / kind / "rgb_000000.png").convert("RGB")) for k in range(stages)]
     h = size * frames[0].shape[0] // frames[0].shape[1]
     both = np.concatenate(clouds)

@@ -2,6 +2,7 @@
 the ground-truth cloud and mesh (open3d), scene.h5, COLMAP text, previews; and the PLY codec."""
 
 import json
+import re
 
 import numpy as np
 import pycolmap
@@ -10,7 +11,7 @@ from PIL import Image
 
 from exact_geometry import closest_point_on_triangles
 from exporters.exr import read_frame_exr
-from exporters.ground_truth import GroundTruthError, read_ground_truth, read_mesh
+from exporters.ground_truth import POINT_PROPERTIES, GroundTruthError, read_ground_truth, read_mesh, read_points
 from exporters.nerfstudio import read_depth_png
 from exporters.palette import label_colors
 from exporters.ply import PlyError, read_ply, write_ply
@@ -54,7 +55,8 @@ def test_transforms_json_reproduces_the_poses(seed_folder, kind):
 def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
     o3d = import_open3d()
     gt = seed_folder / "ground_truth"
-    ours = read_ply(gt / "points.ply")
+    ours = read_points(gt)
+    assert tuple(ours.vertex) == POINT_PROPERTIES  # docs/format.md's table, in its order
     cloud = o3d.t.io.read_point_cloud(str(gt / "points.ply"))
     np.testing.assert_array_equal(cloud.point.positions.numpy(), np.stack([ours.vertex[c] for c in "xyz"], 1))
     np.testing.assert_array_equal(cloud.point.label.numpy().ravel(), ours.vertex["label"])
@@ -135,6 +137,10 @@ def test_incomplete_ground_truth_is_refused(seed_folder, tmp_path):
     (copy / "scene.h5").unlink()
     with pytest.raises(GroundTruthError, match="missing scene.h5"):
         read_ground_truth(copy)
+    cloud = read_points(copy)  # a scoring cloud of this version without a property of docs/format.md
+    write_ply(copy / "points.ply", {k: v for k, v in cloud.vertex.items() if k != "observable"}, comments=cloud.comments)
+    with pytest.raises(GroundTruthError, match=f"^{re.escape(str(copy / 'points.ply'))}: no observable property;"):
+        read_points(copy)
 
 
 def test_colmap_text_on_request_and_previews(seed_folder):

@@ -247,6 +247,30 @@ def test_ground_truth_as_prediction_scores_perfectly(timeline, tmp_path):
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "stages" in r.stderr, r.stderr
 
 
+def test_a_stage_cloud_of_another_format_is_refused_in_one_line(timeline, tmp_path):
+    """The change scoring and change_clouds read the stages' points.ply with
+    exporters.ground_truth.read_points: another format version is one line naming the file
+    and the version (the CLI exits 2), not a score against a cloud this reader may misread."""
+    import shutil
+
+    from datasets import DatasetError
+    from datasets.change import change_clouds
+    from exporters import FORMAT_VERSION
+
+    seed = tmp_path / timeline[0].name
+    shutil.copytree(timeline[0], seed)
+    ply = seed / "phase_1" / "ground_truth" / "points.ply"
+    stated = f"buildee ground truth format {FORMAT_VERSION}".encode()
+    ply.write_bytes(ply.read_bytes().replace(stated, b"buildee ground truth format 0.3".ljust(len(stated))))
+    np.savez(tmp_path / "pred.npz", xyz=np.zeros((3, 3)), change=np.array([1, 2, 1]))
+    r = subprocess.run([sys.executable, "-m", "evaluation", "change", "--gt", str(seed), "--stages", "0", "1",
+                        "--pred", str(tmp_path / "pred.npz")], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert f"{ply}: ground-truth format 0.3, this reader reads {FORMAT_VERSION}" in r.stderr, r.stderr
+    with pytest.raises(DatasetError, match=f"^{re.escape(str(ply))}: ground-truth format 0.3"):
+        change_clouds(seed, 0, 1)
+
+
 def test_a_timeline_seed_is_read_stage_by_stage(timeline, tmp_path):
     """The whole seed and a phase_K folder get messages that say how to read them; a stage's
     folder is a valid --gt for the evaluation (its ground truth scores itself perfectly)."""
