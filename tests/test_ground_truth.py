@@ -203,3 +203,35 @@ def test_instanced_copies_get_their_own_ids(tmp_path):
     cyc = sim.render()
     on_copies = np.isin(out.instance, copies)
     assert len(np.unique(cyc.instance[on_copies])) == 1 and cyc.instance[on_copies][0] in copies
+
+
+def test_a_ray_in_a_triangles_plane_keeps_a_depth_past_the_near_plane():
+    """A pixel ray lying in the plane of the triangle it hits (camera centre on the plane):
+    the float64 plane distance is meaningless there (it came out negative, up to -1e4 m,
+    in 3% of such rays), so the depth must fall back to Embree's hit, never below clip_start."""
+    from generator.geometry.parts import MeshPart
+    from generator.geometry.raycam import RayCamera
+    from generator.geometry.raycast import SceneGeometry
+
+    rng = np.random.default_rng(0)
+    clip = 0.1
+    cam = RayCamera(np.array([[100.0, 0, 1.5], [0, 100.0, 1.5], [0, 0, 1]]), 3, 3, clip, 1000.0)
+    depths = []
+    for _ in range(1500):
+        tri = rng.uniform(-30, 30, (3, 3)).astype(np.float32).astype(np.float64)
+        a, b, c = tri
+        n = np.cross(b - a, c - a)
+        n /= np.linalg.norm(n)
+        z = rng.normal(size=3)
+        z -= (z @ n) * n
+        z /= np.linalg.norm(z)  # the optical axis in the triangle's plane
+        x = np.cross(n, z)
+        pose = np.eye(4)
+        pose[:3, 0], pose[:3, 1], pose[:3, 2] = x, np.cross(z, x), z
+        pose[:3, 3] = a + 0.3 * (b - a) + 0.3 * (c - a) - rng.uniform(2, 40) * z
+        hits = cam.cast(SceneGeometry([MeshPart("t", "x", tri, np.array([[0, 1, 2]]))]), pose, normals=False)
+        depths.append(hits.depth[1, 1])
+    depths = np.array(depths)
+    hit = np.isfinite(depths)
+    assert hit.mean() > 0.1
+    assert depths[hit].min() >= clip, f"{(depths[hit] < clip).sum()} depths below the near plane"

@@ -256,11 +256,15 @@ class SceneGeometry:
             far = ~(np.abs(t - t_embree[hit]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[hit])
             if far.any():
                 rows = hit[far]
-                t[far], unit32 = self._plane_hits(rays[rows, :3], rays[rows, 3:], vertices, corners[far], normals)
+                t32, unit32 = self._plane_hits(rays[rows, :3], rays[rows, 3:], vertices, corners[far], normals)
+                # still far, or behind the ray's start: the ray lies in the plane to round-off,
+                # where only Embree's own answer is consistent with its hit (NaN: taken below)
+                lost = ~(np.abs(t32 - t_embree[rows]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[rows]) | (t32 < 0)
+                t[far] = np.where(lost, np.nan, t32)
                 if normals:
                     unit[far] = unit32
             bad = ~np.isfinite(t) | (~np.isfinite(unit).all(axis=1) if normals else False)
-            if np.any(bad):  # a degenerate triangle: keep Embree's answer
+            if np.any(bad):  # a degenerate triangle or a ray in its plane: keep Embree's answer
                 t[bad] = t_embree[hit[bad]]
                 if normals:
                     unit[bad] = ans["primitive_normals"].numpy()[hit[bad]]
