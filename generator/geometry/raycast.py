@@ -63,6 +63,11 @@ class Structure:
         return self._triangles
 
 
+def _agrees(t: np.ndarray, t_embree: np.ndarray) -> np.ndarray:
+    """(N,) bool: a recomputed distance within the grazing tolerance of Embree's (NaN: no)."""
+    return np.abs(t - t_embree) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree
+
+
 def _build(parts: Sequence[MeshPart]) -> Structure | None:
     structure = Structure(parts)
     return structure if structure.count else None
@@ -253,13 +258,13 @@ class SceneGeometry:
             t, unit = self._plane_hits(origins[hit], directions[hit], vertices, corners, normals)
             # A ray nearly along the triangle's plane: the float64 ray may meet the plane far
             # from where Embree's float32 ray met the triangle; use the float32 ray there.
-            far = ~(np.abs(t - t_embree[hit]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[hit])
+            far = ~_agrees(t, t_embree[hit])
             if far.any():
                 rows = hit[far]
                 t32, unit32 = self._plane_hits(rays[rows, :3], rays[rows, 3:], vertices, corners[far], normals)
                 # still far, or behind the ray's start: the ray lies in the plane to round-off,
                 # where only Embree's own answer is consistent with its hit (NaN: taken below)
-                lost = ~(np.abs(t32 - t_embree[rows]) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree[rows]) | (t32 < 0)
+                lost = ~_agrees(t32, t_embree[rows]) | (t32 < 0)
                 t[far] = np.where(lost, np.nan, t32)
                 if normals:
                     unit[far] = unit32
