@@ -52,3 +52,24 @@ def distance_to_mesh(points: np.ndarray, triangles: np.ndarray, chunk: int = 200
 
 def scene_triangles(parts) -> np.ndarray:
     return np.concatenate([p.world_vertices()[p.faces] for p in parts])
+
+
+def first_hits(origins, dirs, triangles):
+    """Brute force: nearest t > 0 of every ray (N, 3) on triangles (T, 3, 3), float64
+    Moller-Trumbore, and the unit normal of the triangle hit (NaN rows for none)."""
+    a, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
+    best_t, best_n = np.full(len(dirs), np.inf), np.full((len(dirs), 3), np.nan)
+    normals = np.cross(e1, e2)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    for k in range(len(triangles)):
+        p = np.cross(dirs, e2[k])
+        det = p @ e1[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = origins - a[k]
+            u = np.einsum("ij,ij->i", s, p) / det
+            q = np.cross(s, e1[k])
+            v = np.einsum("ij,ij->i", dirs, q) / det
+            t = (q @ e2[k]) / det
+        ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < best_t)
+        best_t[ok], best_n[ok] = t[ok], normals[k]
+    return best_t, best_n

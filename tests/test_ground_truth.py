@@ -76,33 +76,12 @@ def test_renderer_passes_agree_with_the_ray_cast(yard):
         Simulator(yard, ground_truth="cycles")
 
 
-def _first_hits_float64(origins, dirs, triangles):
-    """Brute force: nearest t > 0 of every ray (N, 3) on triangles (T, 3, 3), float64
-    Moller-Trumbore, and the unit normal of the triangle hit (NaN rows for none)."""
-    a, e1, e2 = triangles[:, 0], triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
-    best_t, best_n = np.full(len(dirs), np.inf), np.full((len(dirs), 3), np.nan)
-    normals = np.cross(e1, e2)
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    for k in range(len(triangles)):
-        p = np.cross(dirs, e2[k])
-        det = p @ e1[k]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = origins - a[k]
-            u = np.einsum("ij,ij->i", s, p) / det
-            q = np.cross(s, e1[k])
-            v = np.einsum("ij,ij->i", dirs, q) / det
-            t = (q @ e2[k]) / det
-        ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < best_t)
-        best_t[ok], best_n[ok] = t[ok], normals[k]
-    return best_t, best_n
-
-
 def test_depth_and_normals_are_exact_float64_hits(yard):
     """Depth is the planar distance of each pixel-centre ray (float64) to the triangle hit,
     rounded once to float32; normals are that triangle's. Embree's own float32 distance is
     off by up to ~100 float32 units in the last place here, and its arithmetic differs
     between CPU models (docs/guarantees.md), so this also pins the bytes across machines."""
-    from exact_geometry import scene_triangles
+    from exact_geometry import first_hits, scene_triangles
     from generator.geometry.camera import pixel_rays
 
     sim = Simulator(yard, segmentation_sensitivity=0.0)
@@ -112,7 +91,7 @@ def test_depth_and_normals_are_exact_float64_hits(yard):
     dirs = (pixel_rays(sim.K, W, H) @ pose[:3, :3].T).reshape(-1, 3)
     origins = pose[:3, 3] + sim.clip_start * dirs
     triangles = scene_triangles(sim.scene_parts()).astype(np.float32).astype(np.float64)  # as the structures hold them
-    t, n = _first_hits_float64(origins, dirs, triangles)
+    t, n = first_hits(origins, dirs, triangles)
     expected = (t + sim.clip_start).reshape(H, W)
     hit = np.isfinite(expected) & np.isfinite(out.depth)
     assert hit.mean() > 0.5 and np.array_equal(np.isfinite(expected), np.isfinite(out.depth))
@@ -235,3 +214,61 @@ def test_a_ray_in_a_triangles_plane_keeps_a_depth_past_the_near_plane():
     hit = np.isfinite(depths)
     assert hit.mean() > 0.1
     assert depths[hit].min() >= clip, f"{(depths[hit] < clip).sum()} depths below the near plane"
+
+
+def _wall(origin, angle_deg, length=30.0, height=10.0, cells=(30, 10)):
+    """A vertical wall of 2 x cells triangles (float32 vertices) from ``origin`` along the
+    horizontal direction ``angle_deg``: (vertices, faces, along, its normal)."""
+    a = math.radians(angle_deg)
+    along, up = np.array([math.cos(a), math.sin(a), 0.0]), np.array([0.0, 0.0, 1.0])
+    nu, nv = cells
+    uu, vv = np.meshgrid(np.linspace(0, length, nu + 1), np.linspace(0, height, nv + 1), indexing="ij")
+    verts = (uu.reshape(-1, 1) * along + vv.reshape(-1, 1) * up + origin).astype(np.float32).astype(np.float64)
+    k = (np.arange(nu)[:, None] * (nv + 1) + np.arange(nv)[None, :]).reshape(-1)
+    faces = np.concatenate([np.stack([k, k + nv + 1, k + 1], 1), np.stack([k + 1, k + nv + 1, k + nv + 2], 1)])
+    return verts, faces, along, np.cross(along, up)
+
+
+def test_depth_along_a_wall_seen_from_beside_its_plane_is_the_float64_hit():
+    """A camera 0.1 mm-10 cm from the plane of a tiled wall 200 m from the origin, looking
+    along it: the float32 ray (Embree's) meets the wall millimetres to centimetres from where
+    the float64 one does, often on another tile. The depth must still be the float64 ray's
+    first hit (the tile it really meets), not Embree's distance or the float32 ray's (which
+    were up to 4 mm and 5,600 float32 ulps off here, and CPU-dependent)."""
+    from exact_geometry import first_hits
+    from generator.geometry.camera import pixel_rays
+    from generator.geometry.parts import MeshPart
+    from generator.geometry.raycam import RayCamera
+    from generator.geometry.raycast import SceneGeometry
+
+    rng = np.random.default_rng(1)
+    start = np.array([183.0, 161.0, 20.0])
+    w, h, clip = 64, 48, 0.1
+    K = np.array([[40.0, 0, w / 2], [0, 40.0, h / 2], [0, 0, 1]])
+    cam = RayCamera(K, w, h, clip, 1000.0)
+    compared, worst = 0, 0.0
+    for angle in (17.0, -63.0):
+        verts, faces, along, normal = _wall(start, angle)
+        geometry = SceneGeometry([MeshPart("wall", "wall", verts, faces)])
+        for _ in range(20):
+            yaw = math.radians(rng.uniform(2, 25))  # the optical axis turned toward the wall
+            centre = (start + rng.uniform(0.5, 8) * along + [0, 0, rng.uniform(1, 9)]
+                      + (clip * math.sin(yaw) + 10 ** rng.uniform(-4, -1)) * normal)
+            z = math.cos(yaw) * along - math.sin(yaw) * normal
+            x = np.cross(z, [0, 0, 1.0])
+            x /= np.linalg.norm(x)
+            pose = np.eye(4)
+            pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, np.cross(z, x), z, centre
+            depth = cam.cast(geometry, pose, normals=False).depth
+            dirs = (pixel_rays(K, w, h) @ pose[:3, :3].T).reshape(-1, 3)
+            expected = (first_hits(centre + clip * dirs, dirs, verts[faces])[0] + clip).reshape(h, w)
+            # the two rays may disagree on whether they hit only along the wall's border
+            one = (np.isfinite(expected) != np.isfinite(depth)).reshape(-1)
+            p = centre + np.fmin(expected, depth).reshape(-1)[one, None] * dirs[one] - start
+            u, v = p @ along, p[:, 2]
+            assert np.all(np.minimum(np.minimum(u, 30 - u), np.minimum(v, 10 - v)) < 1e-3)
+            hit = np.isfinite(depth) & np.isfinite(expected)
+            ulps = np.abs(depth[hit] - expected[hit]) / np.spacing(depth[hit])
+            compared, worst = compared + hit.sum(), max(worst, ulps.max(initial=0.0))
+    assert compared > 20_000
+    assert worst <= 1.0, f"depth off the float64 hit by up to {worst:.1f} float32 ulps"

@@ -10,7 +10,8 @@ element by element, on any CPU.
 
 - :func:`rows_times`: ``v @ m`` for rows v (N, 3) and 3x3 m, as (v0 m0k + v1 m1k) + v2 m2k;
 - :func:`batch_rows_times`: the same with one matrix per row;
-- :func:`plane_hits`: where a ray meets the plane of the triangle it hit, and its normal.
+- :func:`plane_hits`: where a ray meets a triangle's plane, how far outside the triangle
+  that is, and the triangle's normal.
 """
 
 from __future__ import annotations
@@ -39,31 +40,56 @@ def batch_rows_times(v: np.ndarray, m: np.ndarray, out: np.ndarray) -> None:
             out[i, k] = (x0 * m[i, 0, k] + x1 * m[i, 1, k]) + x2 * m[i, 2, k]
 
 
+@numba.njit(cache=True, nogil=True, inline="always")  # part of plane_hits' compiled code
+def _outside_edge(px, py, pz, qx, qy, qz, x, y, z, nx, ny, nz, length):
+    """Signed distance (metres) of (x, y, z) outside the edge p -> q of a triangle with
+    normal n = (b - a) x (c - a) of ``length`` |n|, measured in its plane (< 0: inside)."""
+    ex, ey, ez = qx - px, qy - py, qz - pz
+    wx, wy, wz = x - px, y - py, z - pz
+    cross = (nx * (ey * wz - ez * wy) + ny * (ez * wx - ex * wz)) + nz * (ex * wy - ey * wx)
+    return -cross / (length * math.sqrt((ex * ex + ey * ey) + ez * ez))
+
+
 @numba.njit(cache=True, nogil=True)
 def plane_hits(origins: np.ndarray, directions: np.ndarray, vertices: np.ndarray, corners: np.ndarray,
-               t: np.ndarray, unit: np.ndarray, normals: bool) -> None:
-    """For ray i (``origins``, ``directions``: (N, 3) float64) and its triangle, the rows
-    ``corners[i]`` (3,) of ``vertices`` (V, 3): t[i] = n . (a - o) / n . d with
-    n = (b - a) x (c - a), in float64 (inf where the ray runs along the plane, NaN for a
-    degenerate triangle), and with ``normals`` unit[i] = n / |n| (NaN when |n| = 0)."""
+               t: np.ndarray, unit: np.ndarray, outside: np.ndarray, normals: bool) -> None:
+    """For ray i (``origins``, ``directions``: (N, 3) float64) and a triangle, the rows
+    ``corners[i]`` (3,) of ``vertices`` (V, 3), with n = (b - a) x (c - a):
+
+    - t[i] = n . (a - o) / n . d in float64 (inf where the ray runs along the plane, NaN for
+      a degenerate triangle);
+    - outside[i]: how far (metres) the point o + t d lies outside the triangle's nearest
+      edge line, measured in the plane (<= 0: on the triangle; NaN if t or n is not usable);
+    - with ``normals``, unit[i] = n / |n| (NaN when |n| = 0)."""
     for i in range(origins.shape[0]):
         ia, ib, ic = corners[i, 0], corners[i, 1], corners[i, 2]
         ax, ay, az = np.float64(vertices[ia, 0]), np.float64(vertices[ia, 1]), np.float64(vertices[ia, 2])
-        e1x, e1y, e1z = vertices[ib, 0] - ax, vertices[ib, 1] - ay, vertices[ib, 2] - az
-        e2x, e2y, e2z = vertices[ic, 0] - ax, vertices[ic, 1] - ay, vertices[ic, 2] - az
+        bx, by, bz = np.float64(vertices[ib, 0]), np.float64(vertices[ib, 1]), np.float64(vertices[ib, 2])
+        cx, cy, cz = np.float64(vertices[ic, 0]), np.float64(vertices[ic, 1]), np.float64(vertices[ic, 2])
+        e1x, e1y, e1z = bx - ax, by - ay, bz - az
+        e2x, e2y, e2z = cx - ax, cy - ay, cz - az
         nx = e1y * e2z - e1z * e2y
         ny = e1z * e2x - e1x * e2z
         nz = e1x * e2y - e1y * e2x
-        num = (nx * (ax - origins[i, 0]) + ny * (ay - origins[i, 1])) + nz * (az - origins[i, 2])
-        den = (nx * directions[i, 0] + ny * directions[i, 1]) + nz * directions[i, 2]
+        ox, oy, oz = origins[i, 0], origins[i, 1], origins[i, 2]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        num = (nx * (ax - ox) + ny * (ay - oy)) + nz * (az - oz)
+        den = (nx * dx + ny * dy) + nz * dz
         if den != 0.0:
             t[i] = num / den
         elif num != 0.0:
             t[i] = math.inf
         else:
             t[i] = math.nan
+        length = math.sqrt((nx * nx + ny * ny) + nz * nz)
+        if length > 0.0 and math.isfinite(t[i]):
+            x, y, z = ox + t[i] * dx, oy + t[i] * dy, oz + t[i] * dz
+            outside[i] = max(_outside_edge(ax, ay, az, bx, by, bz, x, y, z, nx, ny, nz, length),
+                             _outside_edge(bx, by, bz, cx, cy, cz, x, y, z, nx, ny, nz, length),
+                             _outside_edge(cx, cy, cz, ax, ay, az, x, y, z, nx, ny, nz, length))
+        else:
+            outside[i] = math.nan
         if normals:
-            length = math.sqrt((nx * nx + ny * ny) + nz * nz)
             if length > 0.0:
                 unit[i, 0], unit[i, 1], unit[i, 2] = nx / length, ny / length, nz / length
             else:

@@ -10,10 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .o3d import import_open3d
 from .parts import MeshPart
-
-o3d = import_open3d()
+from .structure import Structure, tensor
 
 # A point counts as visible if nothing is hit closer than ``d - tol`` along the segment
 # from the camera centre, with tol = OCCLUSION_TOL_ABS + OCCLUSION_TOL_REL * d (metres).
@@ -22,52 +20,6 @@ o3d = import_open3d()
 # does not see a change here: after changing them, delete generator/geometry/__pycache__.
 OCCLUSION_TOL_ABS = 1e-3
 OCCLUSION_TOL_REL = 1e-4
-# First hits: the float64 distance to the hit triangle's plane is kept when it is within
-# GRAZING_TOL_ABS + GRAZING_TOL_REL * t (metres) of Embree's float32 one (always, but for
-# rays almost along the triangle's plane); see SceneGeometry._first_hits.
-GRAZING_TOL_ABS = 1e-3
-GRAZING_TOL_REL = 1e-4
-
-
-def _tensor(a: np.ndarray, dtype=np.float32):
-    return o3d.core.Tensor.from_numpy(np.ascontiguousarray(a, dtype=dtype))
-
-
-class Structure:
-    """One Embree structure (open3d ``RaycastingScene``) over some parts, with the float32
-    triangles it was given, for recomputing hits in float64 (exact_kernels.plane_hits)."""
-
-    def __init__(self, parts: Sequence[MeshPart]):
-        self.scene = o3d.t.geometry.RaycastingScene()
-        vertices, faces = [], []
-        for part in parts:
-            if len(part.faces) == 0:
-                continue  # open3d gives geometry ids in insertion order, skipping nothing added
-            v, f = np.ascontiguousarray(part.world_vertices(), dtype=np.float32), part.faces.astype(np.uint32)
-            self.scene.add_triangles(_tensor(v), _tensor(f, np.uint32))
-            vertices.append(v)
-            faces.append(f)
-        self.count = len(vertices)
-        self._vertices, self._faces = vertices, faces
-        self._triangles = None
-
-    def triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(vertices (V, 3) float64, the float32 values Embree holds, of every geometry in
-        order; faces (F, 3) int64 indices into them; first face (G + 1,) int64 of each
-        geometry id)."""
-        if self._triangles is None:
-            starts = np.cumsum([0] + [len(v) for v in self._vertices])
-            face_start = np.cumsum([0] + [len(f) for f in self._faces]).astype(np.int64)
-            faces = np.concatenate([f.astype(np.int64) + s for f, s in zip(self._faces, starts)])
-            self._triangles = (np.concatenate(self._vertices).astype(np.float64), faces, face_start)
-        return self._triangles
-
-
-def _agrees(t: np.ndarray, t_embree: np.ndarray) -> np.ndarray:
-    """(N,) bool: a recomputed distance within the grazing tolerance of Embree's (NaN: no)."""
-    return np.abs(t - t_embree) <= GRAZING_TOL_ABS + GRAZING_TOL_REL * t_embree
-
-
 def _build(parts: Sequence[MeshPart]) -> Structure | None:
     structure = Structure(parts)
     return structure if structure.count else None
@@ -178,7 +130,7 @@ class SceneGeometry:
         for scene in self._scenes():
             if open_ is not None and len(open_) == 0:
                 break
-            t_rays = _tensor(rays if open_ is None else np.take(rays, open_, axis=0))
+            t_rays = tensor(rays if open_ is None else np.take(rays, open_, axis=0))
             hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().view(bool)
             if open_ is None:
                 blocked = hit.copy()
@@ -194,7 +146,7 @@ class SceneGeometry:
         out = np.full(len(points), np.inf)
         if len(points) == 0:
             return out
-        q = _tensor(points)
+        q = tensor(points)
         for scene in self._scenes():
             out = np.minimum(out, scene.compute_distance(q).numpy().astype(np.float64))
         return out
@@ -213,7 +165,7 @@ class SceneGeometry:
             rays = np.empty((n, 6), dtype=np.float32)
             rays[:, :3] = points
             rays[:, 3:] = d / np.linalg.norm(d)
-            t_rays = _tensor(rays)
+            t_rays = tensor(rays)
             count = np.zeros(n, dtype=np.int64)
             for scene in scenes:
                 count += scene.count_intersections(t_rays).numpy().astype(np.int64)
@@ -231,17 +183,13 @@ class SceneGeometry:
         return self._first_hits(origins, directions, normals=True)
 
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
-        # Embree finds the triangle hit (float32 rays, float32 triangles); the distance and
-        # the normal are then recomputed in float64 from the caller's rays and that triangle
-        # (exact_kernels.plane_hits). Embree's own t is float32 arithmetic compiled per instruction set
-        # and picked at run time: off the exact value by up to ~100 float32 units in the last
-        # place on a tilted plane, and different between CPU models.
+        # each structure decides its own hits in float64 (structure.Structure.first_hits); the
+        # nearer of the static and the dynamic answer wins
         origins, directions = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
         rays[:, :3] = origins
         rays[:, 3:] = directions
-        t_rays = _tensor(rays)
         best_t = np.full(n, np.inf)
         best_part = np.full(n, -1, dtype=np.int64)
         best_normal = np.zeros((n, 3), dtype=np.float32) if normals else None
@@ -249,30 +197,7 @@ class SceneGeometry:
         for structure, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
             if structure is None:
                 continue
-            ans = structure.scene.cast_rays(t_rays)
-            t_embree = ans["t_hit"].numpy()
-            hit = np.flatnonzero(np.isfinite(t_embree))
-            gid = ans["geometry_ids"].numpy()[hit].astype(np.int64)
-            vertices, faces, face_start = structure.triangles()
-            corners = faces[face_start[gid] + ans["primitive_ids"].numpy()[hit].astype(np.int64)]
-            t, unit = self._plane_hits(origins[hit], directions[hit], vertices, corners, normals)
-            # A ray nearly along the triangle's plane: the float64 ray may meet the plane far
-            # from where Embree's float32 ray met the triangle; use the float32 ray there.
-            far = ~_agrees(t, t_embree[hit])
-            if far.any():
-                rows = hit[far]
-                t32, unit32 = self._plane_hits(rays[rows, :3], rays[rows, 3:], vertices, corners[far], normals)
-                # still far, or behind the ray's start: the ray lies in the plane to round-off,
-                # where only Embree's own answer is consistent with its hit (NaN: taken below)
-                lost = ~_agrees(t32, t_embree[rows]) | (t32 < 0)
-                t[far] = np.where(lost, np.nan, t32)
-                if normals:
-                    unit[far] = unit32
-            bad = ~np.isfinite(t) | (~np.isfinite(unit).all(axis=1) if normals else False)
-            if np.any(bad):  # a degenerate triangle or a ray in its plane: keep Embree's answer
-                t[bad] = t_embree[hit[bad]]
-                if normals:
-                    unit[bad] = ans["primitive_normals"].numpy()[hit[bad]]
+            hit, t, gid, unit = structure.first_hits(origins, directions, rays, normals)
             closer = t < best_t[hit]
             rows = hit[closer]
             best_t[rows] = t[closer]
@@ -280,16 +205,6 @@ class SceneGeometry:
             if normals:
                 best_normal[rows] = unit[closer]
         return best_t, best_part, best_normal
-
-    @staticmethod
-    def _plane_hits(origins, directions, vertices, corners, normals: bool):
-        from .exact_kernels import plane_hits
-
-        n = len(corners)
-        t, unit = np.empty(n), np.empty((n, 3) if normals else (0, 3))
-        plane_hits(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
-                   vertices, np.ascontiguousarray(corners), t, unit, normals)
-        return t, (unit if normals else None)
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces
