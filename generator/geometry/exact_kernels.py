@@ -41,13 +41,21 @@ def batch_rows_times(v: np.ndarray, m: np.ndarray, out: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, nogil=True, inline="always")  # part of plane_hits' compiled code
-def _outside_edge(px, py, pz, qx, qy, qz, x, y, z, nx, ny, nz, length):
-    """Signed distance (metres) of (x, y, z) outside the edge p -> q of a triangle with
-    normal n = (b - a) x (c - a) of ``length`` |n|, measured in its plane (< 0: inside)."""
+def _edge_side(px, py, pz, qx, qy, qz, x, y, z, nx, ny, nz):
+    """((q - p) x (w - p)) . n for w = (x, y, z): >= 0 on the triangle's side of the edge
+    p -> q (n = (b - a) x (c - a)); its distance from the edge line is this / (|n| |q - p|)."""
     ex, ey, ez = qx - px, qy - py, qz - pz
     wx, wy, wz = x - px, y - py, z - pz
-    cross = (nx * (ey * wz - ez * wy) + ny * (ez * wx - ex * wz)) + nz * (ex * wy - ey * wx)
-    return -cross / (length * math.sqrt((ex * ex + ey * ey) + ez * ez))
+    return (nx * (ey * wz - ez * wy) + ny * (ez * wx - ex * wz)) + nz * (ex * wy - ey * wx)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")  # part of plane_hits' compiled code
+def _beyond(side, px, py, pz, qx, qy, qz, length):
+    """How far (metres, >= 0) a point of edge-side value ``side`` lies beyond the edge p -> q."""
+    if side >= 0.0:
+        return 0.0
+    ex, ey, ez = qx - px, qy - py, qz - pz
+    return -side / (length * math.sqrt((ex * ex + ey * ey) + ez * ez))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -58,8 +66,8 @@ def plane_hits(origins: np.ndarray, directions: np.ndarray, vertices: np.ndarray
 
     - t[i] = n . (a - o) / n . d in float64 (inf where the ray runs along the plane, NaN for
       a degenerate triangle);
-    - outside[i]: how far (metres) the point o + t d lies outside the triangle's nearest
-      edge line, measured in the plane (<= 0: on the triangle; NaN if t or n is not usable);
+    - outside[i]: how far (metres, in the plane) the point o + t d lies beyond the triangle's
+      edge lines, the largest of the three (0: on the triangle; NaN if t or n is unusable);
     - with ``normals``, unit[i] = n / |n| (NaN when |n| = 0)."""
     for i in range(origins.shape[0]):
         ia, ib, ic = corners[i, 0], corners[i, 1], corners[i, 2]
@@ -84,9 +92,12 @@ def plane_hits(origins: np.ndarray, directions: np.ndarray, vertices: np.ndarray
         length = math.sqrt((nx * nx + ny * ny) + nz * nz)
         if length > 0.0 and math.isfinite(t[i]):
             x, y, z = ox + t[i] * dx, oy + t[i] * dy, oz + t[i] * dz
-            outside[i] = max(_outside_edge(ax, ay, az, bx, by, bz, x, y, z, nx, ny, nz, length),
-                             _outside_edge(bx, by, bz, cx, cy, cz, x, y, z, nx, ny, nz, length),
-                             _outside_edge(cx, cy, cz, ax, ay, az, x, y, z, nx, ny, nz, length))
+            s_ab = _edge_side(ax, ay, az, bx, by, bz, x, y, z, nx, ny, nz)
+            s_bc = _edge_side(bx, by, bz, cx, cy, cz, x, y, z, nx, ny, nz)
+            s_ca = _edge_side(cx, cy, cz, ax, ay, az, x, y, z, nx, ny, nz)
+            outside[i] = max(_beyond(s_ab, ax, ay, az, bx, by, bz, length),
+                             _beyond(s_bc, bx, by, bz, cx, cy, cz, length),
+                             _beyond(s_ca, cx, cy, cz, ax, ay, az, length))
         else:
             outside[i] = math.nan
         if normals:

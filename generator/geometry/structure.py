@@ -105,23 +105,25 @@ class Structure:
         t_embree = ans["t_hit"].numpy()
         rows = np.flatnonzero(np.isfinite(t_embree))
         vertices, faces, face_start = self.triangles()
-        face = face_start[ans["geometry_ids"].numpy()[rows].astype(np.int64)] + ans["primitive_ids"].numpy()[rows]
+        geometry = ans["geometry_ids"].numpy()[rows].astype(np.int64)
+        face = face_start[geometry] + ans["primitive_ids"].numpy()[rows]
         o, d = origins[rows], directions[rows]
         t, outside, unit = plane_hits(o, d, vertices, faces[face], normals)
         done = _meets(t, outside, ON_TRIANGLE_TOL)  # step 1
         retry = np.flatnonzero(~done & np.isfinite(t))
         if len(retry):  # step 2: the triangle nearest to the float64 plane hit
             near = self.scene.compute_closest_points(tensor(o[retry] + t[retry, None] * d[retry]))
-            face2 = face_start[near["geometry_ids"].numpy().astype(np.int64)] + near["primitive_ids"].numpy()
+            geometry2 = near["geometry_ids"].numpy().astype(np.int64)
+            face2 = face_start[geometry2] + near["primitive_ids"].numpy()
             t2, outside2, unit2 = plane_hits(o[retry], d[retry], vertices, faces[face2], normals)
             take = _meets(t2, outside2, ON_TRIANGLE_TOL)
             sel = retry[take]
-            t[sel], outside[sel], face[sel] = t2[take], outside2[take], face2[take]
+            t[sel], face[sel], geometry[sel] = t2[take], face2[take], geometry2[take]
             if normals:
                 unit[sel] = unit2[take]
             done[sel] = True
-        done |= _meets(t, outside, near_edge_tol(t))  # step 3
         retry = np.flatnonzero(~done)
+        retry = retry[~_meets(t[retry], outside[retry], near_edge_tol(t[retry]))]  # step 3 keeps the others
         if len(retry):  # step 4: the float32 ray on Embree's triangle
             t32, outside32, unit32 = plane_hits(rays[rows[retry], :3], rays[rows[retry], 3:], vertices, faces[face[retry]], normals)
             take = _meets(t32, outside32, near_edge_tol(t32))
@@ -129,11 +131,10 @@ class Structure:
             t[sel] = t32[take]
             if normals:
                 unit[sel] = unit32[take]
-            done[sel] = True
-        lost = np.flatnonzero(~done | (~np.isfinite(unit).all(axis=1) if normals else False))
+            retry = retry[~take]
+        lost = retry if not normals else np.union1d(retry, np.flatnonzero(~np.isfinite(unit[:, 0])))
         if len(lost):  # step 5: Embree's own answer
             t[lost] = t_embree[rows[lost]]
             if normals:
                 unit[lost] = ans["primitive_normals"].numpy()[rows[lost]]
-        geometry = np.searchsorted(face_start, face, side="right") - 1
         return rows, t, geometry, unit
