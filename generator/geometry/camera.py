@@ -176,6 +176,38 @@ def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
     return out.reshape(v.shape)
 
 
+def matmul_exact(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for stacks of small matrices (..., n, k) and (..., k, m), float64, summed over
+    k in order with separate IEEE multiplies and adds (numpy element-wise operations, never
+    BLAS): the same bits on every CPU, as :func:`rows_times`."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    out = a[..., :, 0, None] * b[..., None, 0, :]
+    for k in range(1, a.shape[-1]):
+        out = out + a[..., :, k, None] * b[..., None, k, :]
+    return out
+
+
+def affine_inverse(m: np.ndarray) -> np.ndarray:
+    """Inverse of invertible affine matrices (..., 4, 4) (last row 0 0 0 1), float64, from the
+    adjugate of the 3x3 part in a fixed order of IEEE operations: the same bits on every CPU
+    (``np.linalg.inv`` hands the work to LAPACK, whose kernel depends on the CPU). Accurate to
+    float64 round-off for the well-conditioned matrices of rigid and scaled objects."""
+    m = np.asarray(m, dtype=np.float64)
+    a = [[m[..., i, j] for j in range(3)] for i in range(3)]
+    cof = [[a[(i + 1) % 3][(j + 1) % 3] * a[(i + 2) % 3][(j + 2) % 3]
+            - a[(i + 1) % 3][(j + 2) % 3] * a[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
+    det = (a[0][0] * cof[0][0] + a[0][1] * cof[0][1]) + a[0][2] * cof[0][2]
+    out = np.zeros(m.shape)
+    for i in range(3):
+        for j in range(3):
+            out[..., i, j] = cof[j][i] / det
+    t = m[..., :3, 3]
+    for i in range(3):
+        out[..., i, 3] = -((out[..., i, 0] * t[..., 0] + out[..., i, 1] * t[..., 1]) + out[..., i, 2] * t[..., 2])
+    out[..., 3, 3] = 1.0
+    return out
+
+
 def pixel_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     """Camera-frame directions (H, W, 3) through pixel centres, scaled so that z = 1."""
     j, i = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)

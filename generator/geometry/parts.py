@@ -31,8 +31,11 @@ class MeshPart:
     source: str = ""  # name of the Blender object the triangles come from
 
     def world_vertices(self) -> np.ndarray:
+        """(V, 3) float64 world positions, the same bits on every CPU (camera.rows_times)."""
+        from .camera import rows_times
+
         m = self.matrix
-        return self.vertices @ m[:3, :3].T + m[:3, 3]
+        return rows_times(self.vertices, m[:3, :3].T) + m[:3, 3]
 
 
 def closed_and_orientation(vertices: np.ndarray, faces: np.ndarray) -> tuple[bool, int]:

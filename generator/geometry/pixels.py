@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .camera import pixel_rays, rows_times
+from .camera import affine_inverse, matmul_exact, pixel_rays, rows_times
 
 
 class PixelGeometry:
@@ -77,7 +77,7 @@ class PixelGeometry:
         if t == self.index or self.object_matrices.shape[1] == 0:
             return x.copy()
         m_now, m_then = self.object_matrices[self.index], self.object_matrices[t]
-        moves = m_then @ np.linalg.inv(m_now)  # (D, 4, 4): this frame's world -> frame t's world
+        moves = matmul_exact(m_then, affine_inverse(m_now))  # (D, 4, 4): this frame's world -> frame t's world
         slot = np.where(self.part >= 0, self.dynamic_slot[np.maximum(self.part, 0)], -1)
         out = x.copy()
         dyn = slot >= 0

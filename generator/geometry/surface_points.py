@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .camera import affine_inverse, rows_times
 from .parts import MeshPart
 from .sampling import ground_height, outward_normals, sample_part
 from .seeding import stream
@@ -102,8 +103,9 @@ class SurfacePoints:
             if a == b:
                 continue
             m = parts[i].matrix
-            self.world[a:b] = self.local[a:b] @ m[:3, :3].T + m[:3, 3]
-            n = self.local_normals[a:b] @ np.linalg.inv(m[:3, :3])  # inverse-transpose
+            # BLAS- and LAPACK-free, the same bits on every CPU (docs/guarantees.md)
+            self.world[a:b] = rows_times(self.local[a:b], m[:3, :3].T) + m[:3, 3]
+            n = rows_times(self.local_normals[a:b], affine_inverse(m)[:3, :3])  # inverse-transpose
             norm = np.linalg.norm(n, axis=1, keepdims=True)
             self.world_normals[a:b] = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
         self.world.flags.writeable = False
