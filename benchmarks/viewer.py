@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 from datasets import Scene  # noqa: E402
 from datasets.viewer import MAX_POINTS, record_seed  # noqa: E402
-from exporters.ply import read_ply  # noqa: E402
+from exporters.ground_truth import read_mesh, read_points  # noqa: E402
 
 
 def read_only(folder: Path) -> float:
@@ -31,7 +31,7 @@ def read_only(folder: Path) -> float:
     t0 = time.perf_counter()
     scene = Scene(folder)
     scene.point_cloud()
-    read_ply(scene.path / "ground_truth" / "mesh.ply")
+    read_mesh(scene.path / "ground_truth")
     for seq in scene.sequences:
         _ = seq.coverage, seq.points
         for t in range(len(seq)):
@@ -69,7 +69,7 @@ def main() -> None:
     args = p.parse_args()
     scene = Scene(args.seed)
     generation = float(scene.manifest["timing"]["seconds"])
-    n_gt = len(read_ply(args.seed / "ground_truth" / "points.ply").vertex["x"])
+    n_gt = len(read_points(args.seed / "ground_truth").vertex["x"])
     frames = {k: len(scene[k]) for k in scene.trajectories}
     reads, writes, statics, size, counts = [], [], [], 0, {}
     with tempfile.TemporaryDirectory() as tmp:

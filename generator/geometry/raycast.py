@@ -20,8 +20,8 @@ from .structure import Structure, tensor
 # does not see a change here: after changing them, delete generator/geometry/__pycache__.
 OCCLUSION_TOL_ABS = 1e-3
 OCCLUSION_TOL_REL = 1e-4
-def _build(parts: Sequence[MeshPart]) -> Structure | None:
-    structure = Structure(parts)
+def _build(parts: Sequence[MeshPart], first_hits: bool = True) -> Structure | None:
+    structure = Structure(parts, first_hits)
     return structure if structure.count else None
 
 
@@ -78,11 +78,11 @@ class SceneGeometry:
         if self._dynamic_dirty:
             dyn = [self.parts[i] for i in self.dynamic_index]
             self._dynamic = _build(dyn)
-            self._dynamic_closed = _build([p for p in dyn if p.closed])
+            self._dynamic_closed = _build([p for p in dyn if p.closed], first_hits=False)
             self._dynamic_dirty = False
         if closed_only:
             if not self._static_closed_built:
-                self._static_closed = _build([self.parts[i] for i in self.static_index if self.parts[i].closed])
+                self._static_closed = _build([self.parts[i] for i in self.static_index if self.parts[i].closed], False)
                 self._static_closed_built = True
             scenes = [self._static_closed, self._dynamic_closed]
         else:

@@ -69,26 +69,32 @@ def _meets(t: np.ndarray, outside: np.ndarray, tol) -> np.ndarray:
 
 class Structure:
     """One Embree structure (open3d ``RaycastingScene``) over some parts, with the float32
-    triangles it was given, for deciding its hits in float64."""
+    triangles it was given, for deciding its hits in float64. A structure built with
+    ``first_hits=False`` (occlusion and inside tests only) keeps no copy of them and refuses
+    :meth:`first_hits`."""
 
-    def __init__(self, parts: Sequence[MeshPart]):
+    def __init__(self, parts: Sequence[MeshPart], first_hits: bool = True):
         self.scene = o3d.t.geometry.RaycastingScene()
         vertices, faces = [], []
+        self.count = 0
         for part in parts:
             if len(part.faces) == 0:
                 continue  # open3d gives geometry ids in insertion order, skipping nothing added
             v, f = np.ascontiguousarray(part.world_vertices(), dtype=np.float32), part.faces.astype(np.uint32)
             self.scene.add_triangles(tensor(v), tensor(f, np.uint32))
-            vertices.append(v)
-            faces.append(f)
-        self.count = len(vertices)
-        self._vertices, self._faces = vertices, faces
+            if first_hits:
+                vertices.append(v)
+                faces.append(f)
+            self.count += 1
+        self._vertices, self._faces = (vertices, faces) if first_hits else (None, None)
         self._triangles = None
 
     def triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(vertices (V, 3) float64, the float32 values Embree holds, of every geometry in
         order; faces (F, 3) int64 indices into them; first face (G + 1,) int64 of each
         geometry id)."""
+        if self._vertices is None:
+            raise ValueError("this structure was built for occlusion tests only (first_hits=False)")
         if self._triangles is None:
             starts = np.cumsum([0] + [len(v) for v in self._vertices])
             face_start = np.cumsum([0] + [len(f) for f in self._faces]).astype(np.int64)
