@@ -210,6 +210,26 @@ def test_crane_and_excavator_are_dynamic(tmp_path):
     assert info["assets"]["Crane"] >= 1 and info["assets"]["Building"] >= 1
 
 
+def test_crane_trolleys_travel_at_a_crane_speed_whatever_the_animation_length():
+    """A trolley runs along its jib at no more than 1 m/s (real ones: 1-1.7 m/s), on a short
+    animation as on the batch job's 250 frames; it used to cover the same distance in any
+    animation length (28 m/s at 20 frames)."""
+    moved = 0.0
+    for frames in (20, 250):
+        for seed in (0, 1, 2):
+            params = site_params("medium", frames=frames)
+            for placed in plan_site(seed, params).placed:
+                if placed.asset.kind != "Crane":
+                    continue
+                keys = [p.keys for p in placed.asset.parts if p.keys is not None and p.keys.location is not None]
+                assert len(keys) == 1  # the trolley (the hook hangs from it)
+                t, x = (keys[0].frames - 1) / params.fps, keys[0].location[:, 0]
+                assert t[0] == 0 and math.isclose(t[-1], (frames - 1) / params.fps) and np.all(np.diff(t) > 0)
+                assert np.all(np.abs(np.diff(x)) <= 1.0 * np.diff(t) + 1e-9), f"trolley faster than 1 m/s, {frames} frames"
+                moved = max(moved, np.ptp(x))
+    assert moved > 5.0  # and it does travel
+
+
 def test_every_class_appears_across_a_few_seeds():
     seen = set()
     for seed in (0, 1, 2, 3):
