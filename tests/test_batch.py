@@ -175,6 +175,23 @@ def test_killed_run_resumes(tmp_path):
     assert not list(tmp_path.glob(".seed_*"))  # partial folder and lock files gone
 
 
+def test_a_worker_whose_runner_died_during_its_start_up_exits_before_working(tmp_path):
+    """A runner killed while its worker's interpreter was still starting (before the worker
+    could ask to die with it) leaves the worker to init: it must notice and exit (3) without
+    touching the seed's folder, not run on as an orphan. Control: the same worker with its
+    true parent named goes on to the seed (and fails there on a bad configuration)."""
+    from generator.batch.executors.seed import PARENT_ENV
+
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    cmd = [sys.executable, "-m", "generator.batch.worker", json.dumps({"bad": True}), "4"]
+    orphan = subprocess.run(cmd + [str(tmp_path / "a")], cwd=ROOT, env=env | {PARENT_ENV: "1"}, capture_output=True,
+                            text=True, timeout=120)
+    assert orphan.returncode == 3 and orphan.stdout == "" and not (tmp_path / "a").exists()
+    child = subprocess.run(cmd + [str(tmp_path / "b")], cwd=ROOT, env=env | {PARENT_ENV: str(os.getpid())},
+                           capture_output=True, text=True, timeout=120)
+    assert child.returncode == 1 and '"event": "error"' in child.stdout
+
+
 def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(tmp_path):
     """A 240 m fly-through (800 frames) fits nowhere on small seed 3: the seed fails with the
     planner's one-line error before the orbit, planned and flown first, renders anything

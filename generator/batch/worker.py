@@ -71,7 +71,9 @@ def _version() -> str:
 
 
 def _die_with_parent() -> None:
-    """Linux: get SIGKILL when the runner dies, so no worker outlives a killed job."""
+    """Linux: get SIGKILL when the runner dies, so no worker outlives a killed job. A parent
+    that died before this ran (the interpreter's start-up, ~0.3 s) left the worker to init:
+    then it exits at once (exit 3), before touching the seed's folder."""
     import ctypes
     import signal
 
@@ -79,6 +81,11 @@ def _die_with_parent() -> None:
         ctypes.CDLL("libc.so.6").prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
     except OSError:
         pass
+    from .executors.seed import PARENT_ENV
+
+    parent = os.environ.get(PARENT_ENV)
+    if parent and os.getppid() != int(parent):
+        os._exit(3)
 
 
 def main(argv: list[str]) -> int:

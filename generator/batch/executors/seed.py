@@ -21,6 +21,10 @@ from typing import Callable
 
 from .. import folders
 
+# the pid of the process that starts a worker, so that the worker can tell it was orphaned
+# before it could ask to die with it (generator/batch/worker.py)
+PARENT_ENV = "BUILDEE_WORKER_PARENT"
+
 ROOT = Path(__file__).resolve().parents[3]  # the worker runs with the repository as its working folder
 
 
@@ -72,7 +76,7 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
         return Outcome(job.seed, "conflict", exc.strerror or str(exc))
     if note:
         emit({"event": "note", "message": note})
-    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | job.env
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"} | job.env | {PARENT_ENV: str(os.getpid())}
     proc = subprocess.Popen(
         [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, cwd=ROOT,
