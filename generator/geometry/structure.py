@@ -118,9 +118,12 @@ class Structure:
         done = _meets(t, outside, ON_TRIANGLE_TOL)  # step 1
         retry = np.flatnonzero(~done & np.isfinite(t))
         if len(retry):  # step 2: the triangle nearest to the float64 plane hit
-            near = self.scene.compute_closest_points(tensor(o[retry] + t[retry, None] * d[retry]))
+            with np.errstate(over="ignore", invalid="ignore"):  # far past the site: found below
+                near = self.scene.compute_closest_points(tensor(o[retry] + t[retry, None] * d[retry]))
             geometry2 = near["geometry_ids"].numpy().astype(np.int64)
-            face2 = face_start[geometry2] + near["primitive_ids"].numpy()
+            found = geometry2 < self.count  # none (Embree's invalid id) for a point past float32's range
+            retry, geometry2 = retry[found], geometry2[found]
+            face2 = face_start[geometry2] + near["primitive_ids"].numpy()[found]
             t2, outside2, unit2 = plane_hits(o[retry], d[retry], vertices, faces[face2], normals)
             take = _meets(t2, outside2, ON_TRIANGLE_TOL)
             sel = retry[take]
