@@ -18,7 +18,12 @@ Embree holds them (docs/rendering.md, "Ground truth"), in this order:
 4. otherwise the float32 ray's own hit on that triangle, in float64, within the same
    tolerance (a ray so nearly in the triangle's plane that the float64 one meets it far off);
 5. otherwise Embree's own distance and normal (a ray in the plane to round-off, or a
-   degenerate triangle). Only this last case depends on the CPU's arithmetic.
+   degenerate triangle).
+
+Only step 5 reads Embree's distances. Which triangle Embree proposes, and which one its
+closest-point query returns, is still Embree's choice where the float32 ray passes within
+float32 round-off of an edge or an outline; at grazing angles that can be a surface
+centimetres from the float64 ray's first one (docs/rendering.md, "Ground truth").
 """
 
 from __future__ import annotations
