@@ -26,6 +26,7 @@ import numpy as np
 import pycocotools.mask as mask_utils
 
 from generator.geometry.boxes import amodal_box, part_world_matrices, tight_boxes, used_vertices
+from generator.geometry.camera import rows_times
 
 from . import FORMAT_VERSION
 from .frames import frame_names
@@ -104,7 +105,7 @@ class CocoWriter:
             m = matrices[iid]
             if iid not in self.used:
                 self.used[iid] = used_vertices(part.faces)
-            amodal = amodal_box(part.vertices @ m[:3, :3].T + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
+            amodal = amodal_box(rows_times(part.vertices, m[:3, :3].T) + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
                                 ctx.width, ctx.height, self.used[iid], near=self.near)
             self.annotations.append({
                 "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),

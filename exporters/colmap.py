@@ -21,6 +21,8 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
+from generator.geometry.camera import invert_rigid
+
 
 def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: int, poses: np.ndarray,
                        image_names: list[str], observations: list[tuple[np.ndarray, np.ndarray]],
@@ -36,7 +38,7 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
     for t, ((idx, uv), pose, name) in enumerate(zip(observations, poses, image_names)):
         image_id = t + 1
         image = pycolmap.Image(name=name, keypoints=np.asarray(uv, dtype=np.float64).reshape(-1, 2), camera_id=1, image_id=image_id)
-        cam_from_world = np.linalg.inv(pose)[:3, :4]
+        cam_from_world = invert_rigid(pose)[:3, :4]  # BLAS-free: the same bits on every CPU
         rec.add_image_with_trivial_frame(image, pycolmap.Rigid3d(cam_from_world))
         for k, p in enumerate(np.asarray(idx)):
             tracks.setdefault(int(p), []).append(pycolmap.TrackElement(image_id, k))

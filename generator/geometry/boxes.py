@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import world_to_camera
+from .camera import rows_times, world_to_camera
 
 NEAR = 1e-6  # metres: geometry at planar depth below this is treated as behind the camera
 
@@ -175,7 +175,7 @@ def amodal_box(vertices: np.ndarray, faces: np.ndarray, world_from_camera: np.nd
     near = max(float(near), NEAR)
     used = used_vertices(faces) if used is None else used
     pc = world_to_camera(np.asarray(vertices, float), world_from_camera)
-    h = pc @ np.asarray(K, float).T  # (u z, v z, z): the view is 0 <= u <= W, 0 <= v <= H, z >= near
+    h = rows_times(pc, np.asarray(K, float).T)  # (u z, v z, z): the view is 0 <= u <= W, 0 <= v <= H, z >= near
     planes = np.stack([h[:, 0], width * h[:, 2] - h[:, 0], h[:, 1], height * h[:, 2] - h[:, 1], h[:, 2] - near], 1)
     codes = (planes < 0).astype(np.uint8) @ np.array([1, 2, 4, 8, 16], np.uint8)  # the view planes each vertex is beyond
     inside = used[codes[used] == 0]
@@ -239,8 +239,8 @@ def _near_crossings(pc: np.ndarray, faces: np.ndarray, K: np.ndarray, width: int
     p0 = points[np.arange(len(cut)), order[:, 0]]
     p1 = points[np.arange(len(cut)), order[:, 1]]
     K = np.asarray(K, float)
-    q0 = (p0 @ K.T)[:, :2] / near
-    q1 = (p1 @ K.T)[:, :2] / near
+    q0 = rows_times(p0, K.T)[:, :2] / near
+    q1 = rows_times(p1, K.T)[:, :2] / near
     d = q1 - q0
     lo, hi = np.zeros(len(cut)), np.ones(len(cut))
     for axis, limit in ((0, width), (1, height)):

@@ -134,11 +134,12 @@ def validate_rigid(matrix: np.ndarray, tolerance: float = RIGID_TOLERANCE) -> np
 
 
 def invert_rigid(m: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform."""
+    """Inverse of a rigid 4x4 transform: the rotation transposed and -R^T t, without BLAS (the
+    same bits on every CPU, :func:`rows_times`)."""
     out = np.eye(4)
-    r = m[:3, :3]
+    r = np.asarray(m[:3, :3], dtype=np.float64)
     out[:3, :3] = r.T
-    out[:3, 3] = -r.T @ m[:3, 3]
+    out[:3, 3] = -rows_times(m[:3, 3], r)
     return out
 
 
@@ -146,7 +147,7 @@ def world_to_camera(points_world: np.ndarray, world_from_camera: np.ndarray) -> 
     """Points (N, 3) from world to OpenCV camera coordinates."""
     r = world_from_camera[:3, :3]
     t = world_from_camera[:3, 3]
-    return (np.asarray(points_world) - t) @ r
+    return rows_times(np.asarray(points_world) - t, r)  # BLAS-free: the same bits on every CPU
 
 
 def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray):
