@@ -25,6 +25,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from generator.geometry.camera import apply_affine, turn_normals
 from generator.geometry.parts import MeshPart
 from generator.geometry.sampling import ground_height, outward_normals, sample_part
 from generator.geometry.seeding import stream
@@ -41,10 +42,6 @@ POINT_PROPERTIES = ("x", "y", "z", "red", "green", "blue", "label", "instance", 
 DEFAULT_SCORING_DENSITY = 100.0  # points per square metre: mean spacing ~0.1 m, mean NN distance ~0.05 m
 
 
-def _place(part: MeshPart, matrix: np.ndarray, local: np.ndarray) -> np.ndarray:
-    return local @ matrix[:3, :3].T + matrix[:3, 3] if part.dynamic else local
-
-
 def sample_scoring_points(parts: list[MeshPart], label_ids: dict[str, int], density: float, seed: int) -> dict:
     """Uniform samples on every part at ``density`` points/m^2 at the parts' current matrices:
     ``xyz`` (N, 3) float64 world metres, ``normals`` (N, 3) world outward unit normals (zero
@@ -55,22 +52,14 @@ def sample_scoring_points(parts: list[MeshPart], label_ids: dict[str, int], dens
     ground_z = ground_height(parts)
     for i, p in enumerate(parts):
         pts, face = sample_part(p, density, stream(seed, "scoring-points", p.name), ground_z)
-        xyz.append(_place(p, p.matrix, pts))
-        normals.append(_turn_normals(p, outward_normals(p, face)))
+        xyz.append(apply_affine(p.matrix, pts) if p.dynamic else pts)
+        n = outward_normals(p, face)
+        normals.append(turn_normals(p.matrix, n) if p.dynamic and len(n) else n)
         label.append(np.full(len(pts), label_ids[p.label], np.int32))
         instance.append(np.full(len(pts), i, np.int32))
         dynamic.append(np.full(len(pts), p.dynamic, bool))
     return {"xyz": np.concatenate(xyz), "normals": np.concatenate(normals), "label": np.concatenate(label),
             "instance": np.concatenate(instance), "dynamic": np.concatenate(dynamic)}
-
-
-def _turn_normals(part: MeshPart, normals: np.ndarray) -> np.ndarray:
-    """Normals from a dynamic part's frame to the world (inverse-transpose), unit length."""
-    if not part.dynamic or not len(normals):
-        return normals
-    n = normals @ np.linalg.inv(part.matrix[:3, :3])
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
 
 
 def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[str], surface: dict,
@@ -114,7 +103,7 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
 
     verts, faces, vlabel, flabel, finst, offset = [], [], [], [], [], 0
     for i, (p, m) in enumerate(zip(parts, first)):
-        verts.append(_place(p, m, p.vertices))
+        verts.append(apply_affine(m, p.vertices) if p.dynamic else p.vertices)
         faces.append(p.faces + offset)
         offset += len(p.vertices)
         vlabel.append(np.full(len(p.vertices), label_ids[p.label], np.int32))

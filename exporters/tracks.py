@@ -34,7 +34,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from generator.geometry.camera import project
+from generator.geometry.camera import apply_affine, project
 
 from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, attribute, create_file, damaged, dataset, group, open_file, read,
@@ -179,7 +179,7 @@ def world_positions(data: dict, t: int, ids: np.ndarray) -> np.ndarray:
     for d in np.unique(obj[obj >= 0]):
         m = data["world_from_object"][t, d]
         sel = obj == d
-        out[sel] = local[sel] @ m[:3, :3].T + m[:3, 3]
+        out[sel] = apply_affine(m, local[sel])
     return out
 
 

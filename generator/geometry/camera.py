@@ -177,6 +177,22 @@ def rows_times(v: np.ndarray, m: np.ndarray) -> np.ndarray:
     return out.reshape(v.shape)
 
 
+def apply_affine(m: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Points (..., 3) moved by the 4x4 affine ``m`` (p R^T + t), float64, BLAS-free: the same
+    bits on every CPU (:func:`rows_times`)."""
+    m = np.asarray(m, dtype=np.float64)
+    return rows_times(points, m[:3, :3].T) + m[:3, 3]
+
+
+def turn_normals(m: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Unit normals (N, 3) carried by the 4x4 affine ``m`` (the inverse-transpose of its 3x3
+    part, so scale and mirrors are right), made unit length again (zero stays zero);
+    BLAS- and LAPACK-free (:func:`affine_inverse`)."""
+    n = rows_times(normals, affine_inverse(m)[:3, :3])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+
+
 def matmul_exact(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a @ b`` for stacks of small matrices (..., n, k) and (..., k, m), float64, summed over
     k in order with separate IEEE multiplies and adds (numpy element-wise operations, never

@@ -32,10 +32,9 @@ class MeshPart:
 
     def world_vertices(self) -> np.ndarray:
         """(V, 3) float64 world positions, the same bits on every CPU (camera.rows_times)."""
-        from .camera import rows_times
+        from .camera import apply_affine
 
-        m = self.matrix
-        return rows_times(self.vertices, m[:3, :3].T) + m[:3, 3]
+        return apply_affine(self.matrix, self.vertices)
 
 
 def closed_and_orientation(vertices: np.ndarray, faces: np.ndarray) -> tuple[bool, int]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import affine_inverse, rows_times
+from .camera import turn_normals
 from .parts import MeshPart, face_normals
 
 
@@ -75,8 +75,7 @@ def contact_faces(part: MeshPart, ground_z: float | None) -> np.ndarray:
     if not low.any():
         return out
     n = face_normals(np.asarray(part.vertices, np.float64), faces[low]) * part.outward
-    n = rows_times(n, affine_inverse(m)[:3, :3])  # normals move with the inverse-transpose (mirrors included)
-    nz = n[:, 2] / np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+    nz = turn_normals(m, n)[:, 2]  # normals move with the inverse-transpose (mirrors included)
     out[np.flatnonzero(low)[nz <= -CONTACT_COS]] = True
     return out
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import affine_inverse, rows_times
+from .camera import apply_affine, turn_normals
 from .parts import MeshPart
 from .sampling import ground_height, outward_normals, sample_part
 from .seeding import stream
@@ -103,9 +103,6 @@ class SurfacePoints:
             if a == b:
                 continue
             m = parts[i].matrix
-            # BLAS- and LAPACK-free, the same bits on every CPU (docs/guarantees.md)
-            self.world[a:b] = rows_times(self.local[a:b], m[:3, :3].T) + m[:3, 3]
-            n = rows_times(self.local_normals[a:b], affine_inverse(m)[:3, :3])  # inverse-transpose
-            norm = np.linalg.norm(n, axis=1, keepdims=True)
-            self.world_normals[a:b] = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+            self.world[a:b] = apply_affine(m, self.local[a:b])
+            self.world_normals[a:b] = turn_normals(m, self.local_normals[a:b])
         self.world.flags.writeable = False
