@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
+from generator.geometry import portable_math
+
 from .modalities import MODALITIES
 from .palette import colorize_labels
 
@@ -54,11 +56,11 @@ def colorize_flow(flow: np.ndarray, max_flow: float | None = None) -> np.ndarray
     full colour at ``max_flow`` pixels and beyond); NaN = black."""
     f = np.asarray(flow, np.float64)
     ok = np.isfinite(f).all(-1)
-    mag = np.where(ok, np.hypot(f[..., 0], f[..., 1]), 0.0)
+    mag = np.where(ok, portable_math.hypot(f[..., 0], f[..., 1]), 0.0)
     if max_flow is None:
         max_flow = float(np.percentile(mag[ok], 98)) if ok.any() else 1.0
     max_flow = max(max_flow, 1e-6)
-    hue = (np.arctan2(np.where(ok, f[..., 1], 0), np.where(ok, f[..., 0], 0)) / (2 * np.pi)) % 1.0
+    hue = (portable_math.atan2(np.where(ok, f[..., 1], 0), np.where(ok, f[..., 0], 0)) / (2 * np.pi)) % 1.0
     rgb = _hsv(hue, np.clip(mag / max_flow, 0, 1), np.ones(mag.shape))
     rgb[~ok] = 0
     return rgb

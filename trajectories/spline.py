@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from generator.checks import check_integer, check_number
+from generator.geometry import portable_math
 from generator.geometry.camera import heading_pose
 
 from . import checks
@@ -20,7 +21,7 @@ def _catmull_rom(points: np.ndarray, samples_per_segment: int) -> np.ndarray:
     out = []
     for k in range(1, len(p) - 2):
         p0, p1, p2, p3 = p[k - 1], p[k], p[k + 1], p[k + 2]
-        out.append(0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t**2 + (-p0 + 3 * p1 - 3 * p2 + p3) * t**3))
+        out.append(0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * (t * t) + (-p0 + 3 * p1 - 3 * p2 + p3) * (t * t * t)))
     out.append(points[-1:])
     return np.concatenate(out)
 
@@ -50,7 +51,7 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
         pts, draws = [lo + rng.random(3) * (hi - lo)], 0
         while len(pts) < waypoints and draws < 10_000:
             cand, draws = lo + rng.random(3) * (hi - lo), draws + 1
-            if checker.is_free(cand) and np.linalg.norm(cand - pts[-1]) > spacing:
+            if checker.is_free(cand) and portable_math.vector_norm(cand - pts[-1]) > spacing:
                 pts.append(cand)
         if len(pts) < waypoints or not checker.is_free(pts[0]):
             continue
@@ -65,7 +66,7 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
         ahead = np.column_stack([np.interp(np.minimum(s + 1.0, cum[-1]), cum, curve[:, k]) for k in range(3)])
         d = ahead - pos
         d[-1] = d[-2] if frames > 1 else d[-1]
-        yaw = np.arctan2(d[:, 1], d[:, 0])
+        yaw = portable_math.atan2(d[:, 1], d[:, 0])  # the same bits on every CPU
         poses = np.stack([heading_pose(p, y, pitch) for p, y in zip(pos, yaw)])
         return Trajectory(poses, timestamps(frames, fps), "spline", [""] * (frames - 1),
                           {"speed_m_s": speed, "waypoints": np.array(pts).tolist(), "pitch_deg": pitch_deg, "fps": fps})

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from generator.checks import check_number
+from generator.geometry import portable_math
 from generator.geometry.camera import heading_pose, look_at
 
 from . import checks
@@ -45,7 +46,8 @@ def orbit(checker: MotionChecker, center, radius: float, altitude: float, frames
     a = start_angle + 2 * math.pi * turns * np.arange(frames) / frames
 
     def make(alt):
-        pos = np.column_stack([c[0] + radius * np.cos(a), c[1] + radius * np.sin(a), np.full(frames, alt)])
+        sin_a, cos_a = portable_math.sincos(a)  # the same bits on every CPU
+        pos = np.column_stack([c[0] + radius * cos_a, c[1] + radius * sin_a, np.full(frames, alt)])
         return pos, np.stack([look_at(p, (c[0], c[1], look_at_height)) for p in pos])
 
     poses, alt = _raise_until_clear(checker, make, altitude)
@@ -78,7 +80,7 @@ def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spac
     idx = np.minimum(np.searchsorted(cum, s, side="right") - 1, len(seg) - 1)
     frac = (s - cum[idx]) / np.maximum(cum[idx + 1] - cum[idx], 1e-12)
     xy = corners[idx] + frac[:, None] * seg[idx]
-    yaw = np.arctan2(seg[idx, 1], seg[idx, 0])
+    yaw = portable_math.atan2(seg[idx, 1], seg[idx, 0])
     pitch = math.radians(pitch_deg)
 
     def make(alt):

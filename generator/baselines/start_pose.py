@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import portable_math
 from ..geometry.camera import heading_pose
 
 
@@ -75,7 +76,7 @@ def entrance_start_pose(fence_runs, spawn_box) -> np.ndarray:
         raise ValueError("the gate's inward line never enters the camera spawn volume")
     xy = gate.midpoint + t_in * gate.inward
     xy = np.clip(xy, lo[:2], hi[:2])  # exactly on the face, not a rounding error outside
-    return heading_pose(np.array([xy[0], xy[1], lo[2]]), float(np.arctan2(gate.inward[1], gate.inward[0])), 0.0)
+    return heading_pose(np.array([xy[0], xy[1], lo[2]]), portable_math.atan2(gate.inward[1], gate.inward[0]), 0.0)
 
 
 def site_start(plan) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:

@@ -9,6 +9,7 @@ import bpy
 import numpy as np
 from bpy_extras import anim_utils
 
+from ..geometry.portable_math import atan2, hypot, sincos
 from ..scene.assets import Asset, Part
 from ..scene.meshes import MeshData
 from ..scene.site import SitePlan, fence_part, ground_part
@@ -75,7 +76,7 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
     """Create the asset's objects; root parts are placed at ``position`` / ``yaw``. With a
     ``uid`` (a timeline's stage) objects get the names they have in every stage."""
     objects = []
-    c, s = math.cos(yaw), math.sin(yaw)
+    s, c = sincos(yaw)
     px, py = position
     for number, part in enumerate(asset.parts):
         name = part.label or f"{asset.kind}Pivot"
@@ -143,7 +144,8 @@ def _sun_and_sky(seed: int) -> dict:
     sky.sky_type = "HOSEK_WILKIE"
     sky.turbidity = float(rng.uniform(2.0, 5.0))
     sky.ground_albedo = float(rng.uniform(0.2, 0.4))
-    sky.sun_direction = (math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth), math.sin(elevation))
+    (se, ce), (sa, ca) = sincos(elevation), sincos(azimuth)
+    sky.sun_direction = (ce * ca, ce * sa, se)
     bg = nodes.get("Background") or nodes.new("ShaderNodeBackground")
     bg.inputs["Strength"].default_value = float(rng.uniform(3.0, 5.0))
     links.new(sky.outputs["Color"], bg.inputs["Color"])
@@ -181,7 +183,7 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
         scene.collection.objects.link(cam)
         eye, target = (np.array(v, dtype=float) for v in plan.camera)
         d = target - eye
-        cam.rotation_euler = (math.atan2(math.hypot(d[0], d[1]), -d[2]), 0.0, math.atan2(d[1], d[0]) - math.pi / 2)
+        cam.rotation_euler = (atan2(hypot(d[0], d[1]), -d[2]), 0.0, atan2(d[1], d[0]) - math.pi / 2)
         cam.location = tuple(eye)
         scene.camera = cam
         apply_settings(resolve_settings("default", resolution=resolution))

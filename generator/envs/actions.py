@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 
+from ..geometry import portable_math
 from ..geometry.camera import heading_pose, translated_along_axis, turned_about_world_z
 
 DISCRETE_ACTIONS = ("forward", "left", "right", "turn_left", "turn_right")
@@ -45,7 +46,8 @@ def heading_and_pitch(pose: np.ndarray) -> tuple[float, float]:
     """Heading (radians from +X, counter-clockwise seen from above) and pitch (radians above
     the horizon) of the camera's optical axis."""
     f = np.asarray(pose, dtype=np.float64)[:3, 2]
-    return math.atan2(f[1], f[0]), math.asin(float(np.clip(f[2], -1.0, 1.0)))
+    # portable_math: the same bits on every CPU; atan2(z, |xy|) is asin(z) of a unit axis
+    return portable_math.atan2(f[1], f[0]), portable_math.atan2(f[2], portable_math.hypot(f[0], f[1]))
 
 
 def continuous_targets(pose: np.ndarray, action: np.ndarray, step: float, angle: float) -> tuple[np.ndarray, np.ndarray]:
@@ -63,8 +65,9 @@ def continuous_targets(pose: np.ndarray, action: np.ndarray, step: float, angle:
         limit = math.radians(MAX_PITCH_DEG)
         pitch = float(np.clip(pitch + math.radians(a[4] * angle), -limit, limit))
         turned = heading_pose(pose[:3, 3], yaw, pitch)
-    forward = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    right = np.array([math.sin(yaw), -math.cos(yaw), 0.0])
+    sin_yaw, cos_yaw = portable_math.sincos(yaw)
+    forward = np.array([cos_yaw, sin_yaw, 0.0])
+    right = np.array([sin_yaw, -cos_yaw, 0.0])
     moved = turned.copy()
     moved[:3, 3] += step * (a[0] * forward + a[1] * right + a[2] * np.array([0.0, 0.0, 1.0]))
     return turned, moved

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import rows_times, world_to_camera
+from .camera import apply_affine, matmul_exact, polar_factor, rows_times, world_to_camera
+from .portable_math import vector_norm
 
 NEAR = 1e-6  # metres: geometry at planar depth below this is treated as behind the camera
 
@@ -47,13 +48,13 @@ class Box3D:
 
     def transformed(self, matrix: np.ndarray) -> "Box3D":
         """The box in the frame ``matrix`` maps to (e.g. world_from_object). Scale in the
-        matrix is folded into ``size``; the matrix must not shear (rigid times axis scale)."""
+        matrix is folded into ``size``; the matrix must not shear (rigid times axis scale).
+        BLAS- and LAPACK-free: the same bits on every CPU (docs/guarantees.md)."""
         m = np.asarray(matrix, float)
-        axes = m[:3, :3] @ self.rotation
-        lengths = np.linalg.norm(axes, axis=0)
-        u, _, vt = np.linalg.svd(axes / np.where(lengths > 0, lengths, 1.0))
-        rotation = u @ vt  # the nearest rotation (exact when the matrix does not shear)
-        return Box3D(m[:3, :3] @ self.centre + m[:3, 3], self.size * lengths, rotation)
+        axes = matmul_exact(m[:3, :3], self.rotation)
+        lengths = vector_norm(axes.T)
+        rotation = polar_factor(axes / np.where(lengths > 0, lengths, 1.0))  # exact when m does not shear
+        return Box3D(apply_affine(m, self.centre), self.size * lengths, rotation)
 
 
 def upright_box(points: np.ndarray) -> Box3D:
@@ -63,13 +64,13 @@ def upright_box(points: np.ndarray) -> Box3D:
     if len(p) == 0:
         return Box3D(np.zeros(3), np.zeros(3), np.eye(3))
     xy = _hull_2d(p[:, :2])
-    angle = _min_area_angle(xy)
-    c, s = np.cos(angle), np.sin(angle)
-    rot2 = np.array([[c, -s], [s, c]])
-    local = xy @ rot2  # coordinates along the box axes
+    c, s = _min_area_axis(xy)
+    x, y = xy[:, 0], xy[:, 1]
+    local = np.column_stack([x * c + y * s, y * c - x * s])  # coordinates along the box axes
     lo, hi = local.min(axis=0), local.max(axis=0)
     z0, z1 = p[:, 2].min(), p[:, 2].max()
-    centre = np.append(rot2 @ ((lo + hi) / 2), (z0 + z1) / 2)
+    mid = (lo + hi) / 2
+    centre = np.array([mid[0] * c - mid[1] * s, mid[0] * s + mid[1] * c, (z0 + z1) / 2])
     rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return Box3D(centre, np.append(hi - lo, z1 - z0), rotation)
 
@@ -87,19 +88,30 @@ def _hull_2d(xy: np.ndarray) -> np.ndarray:
     return np.unique(xy, axis=0)
 
 
-def _min_area_angle(hull: np.ndarray) -> float:
-    """Yaw in [0, pi/2) of the minimum-area rectangle around a convex polygon: one of its
-    sides lies along a hull edge, so only the edge directions are tried (ties: smallest yaw)."""
-    if len(hull) < 2:
-        return 0.0
+def _min_area_axis(hull: np.ndarray) -> tuple[float, float]:
+    """(cos, sin) of the yaw in [0, pi/2) of the minimum-area rectangle around a convex
+    polygon: one of its sides lies along a hull edge, so only the edge directions are tried
+    (ties: smallest yaw). Each edge is turned by quarter turns (exact) into the first quadrant
+    and normalised: no trigonometry and no BLAS, so the same bits on every CPU."""
     edges = np.roll(hull, -1, axis=0) - hull
-    angles = np.unique(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2))
-    c, s = np.cos(angles), np.sin(angles)
-    u = hull @ np.stack([c, s])          # (n, a): coordinate along each candidate x axis
-    v = hull @ np.stack([-s, c])
+    ex, ey = edges[:, 0], edges[:, 1]
+    keep = (ex != 0) | (ey != 0)
+    ex, ey = ex[keep], ey[keep]
+    if len(ex) == 0:
+        return 1.0, 0.0
+    # quarter turns: (x, y) -> (y, -x) when x <= 0 < y; (-x, -y) when x < 0, y <= 0; (-y, x) when y < 0 <= x
+    q1, q2, q3 = (ex <= 0) & (ey > 0), (ex < 0) & (ey <= 0), (ex >= 0) & (ey < 0)
+    fx = np.select([q1, q2, q3], [ey, -ex, -ey], ex)
+    fy = np.select([q1, q2, q3], [-ex, -ey, ex], ey)
+    length = vector_norm(np.column_stack([fx, fy]))
+    c, s = fx / length, fy / length
+    order = np.lexsort((-c, s))  # by yaw: sin grows with it on [0, pi/2)
+    c, s = c[order], s[order]
+    x, y = hull[:, 0, None], hull[:, 1, None]
+    u, v = x * c + y * s, y * c - x * s  # (n, a): coordinates along each candidate's axes
     area = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
     best = np.flatnonzero(area <= area.min() * (1 + 1e-12) + 1e-18)[0]
-    return float(angles[best])
+    return float(c[best]), float(s[best])
 
 
 def part_world_matrices(parts: list, dynamic_objects: list[str], object_matrices: np.ndarray) -> list[np.ndarray]:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import portable_math
+
 # Blender camera frame (x right, y up, z backward) -> OpenCV camera frame.
 CV_FROM_BLENDER_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])
 
@@ -90,13 +92,44 @@ def intrinsics_from_blender(
 
 
 def orthonormalize(rotation: np.ndarray) -> np.ndarray:
-    """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale."""
-    u, _, vt = np.linalg.svd(rotation)
-    r = u @ vt
-    if np.linalg.det(r) < 0:
-        u[:, -1] *= -1
-        r = u @ vt
-    return r
+    """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale. With a
+    positive determinant (a rotation times scale: every matrix of a Blender object without a
+    mirror) it is :func:`polar_factor`, the same bits on every CPU; a mirror goes through
+    LAPACK's SVD (the rotation nearest to it, not a reflection)."""
+    r = np.asarray(rotation, dtype=np.float64)
+    if _inverse_transpose_3x3(r)[1] > 0:
+        return polar_factor(r)
+    u, _, vt = np.linalg.svd(r)
+    u[:, -1] *= -1
+    return u @ vt
+
+
+def _inverse_transpose_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
+    """(a^-T, det a) of a 3x3 matrix from its cofactors, in a fixed order of IEEE operations."""
+    cof = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
+            cof[i, j] = a[i1, j1] * a[i2, j2] - a[i1, j2] * a[i2, j1]
+    det = float((a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1]) + a[0, 2] * cof[0, 2])
+    return cof / det, det
+
+
+def polar_factor(a: np.ndarray, iterations: int = 30) -> np.ndarray:
+    """The orthogonal matrix nearest to an invertible 3x3 matrix (U V^T of its SVD: a rotation
+    when the determinant is positive) by Newton's iteration X <- (X + X^-T) / 2, which
+    converges quadratically from a matrix near a rotation times scale; IEEE operations in a
+    fixed order, so the same bits on every CPU (LAPACK's SVD picks its kernel by CPU)."""
+    x = np.array(a, dtype=np.float64)
+    if not np.isfinite(x).all() or _inverse_transpose_3x3(x)[1] == 0:
+        raise ValueError("polar_factor needs a finite, invertible 3x3 matrix")
+    for _ in range(iterations):
+        nxt = 0.5 * (x + _inverse_transpose_3x3(x)[0])
+        done = np.array_equal(nxt, x)
+        x = nxt
+        if done:
+            break
+    return x
 
 
 def world_from_camera_from_blender(matrix_world: np.ndarray) -> np.ndarray:
@@ -261,19 +294,20 @@ def translated_along_axis(world_from_camera: np.ndarray, axis: int, distance: fl
 def turned_about_world_z(world_from_camera: np.ndarray, angle: float) -> np.ndarray:
     """The pose turned right (clockwise seen from above) by ``angle`` radians about the
     world Z axis through its centre; the horizon stays level."""
-    c, s = np.cos(-angle), np.sin(-angle)
+    s, c = portable_math.sincos(-angle)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     m = np.array(world_from_camera, dtype=np.float64)
-    m[:3, :3] = rz @ m[:3, :3]
+    m[:3, :3] = matmul_exact(rz, m[:3, :3])
     return m
 
 
 def heading_pose(position, yaw: float, pitch: float) -> np.ndarray:
     """world_from_camera at ``position`` looking along heading ``yaw`` (radians from +X,
     counter-clockwise seen from above) and ``pitch`` (radians above the horizon), zero roll."""
-    forward = np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
+    (sp, cp), (sy, cy) = portable_math.sincos(pitch), portable_math.sincos(yaw)  # the same bits on every CPU
+    forward = np.array([cp * cy, cp * sy, sp])
     right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
+    right /= portable_math.vector_norm(right)
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, np.cross(forward, right), forward, position
     return m
@@ -282,10 +316,10 @@ def heading_pose(position, yaw: float, pitch: float) -> np.ndarray:
 def levelled(pose: np.ndarray) -> np.ndarray:
     """The same position and heading with the camera level (zero pitch and roll)."""
     forward = np.asarray(pose)[:3, 2]
-    return heading_pose(np.asarray(pose)[:3, 3], float(np.arctan2(forward[1], forward[0])), 0.0)
+    return heading_pose(np.asarray(pose)[:3, 3], portable_math.atan2(forward[1], forward[0]), 0.0)
 
 
 def look_at(eye, target) -> np.ndarray:
     """world_from_camera at ``eye`` looking at ``target`` with zero roll (not straight down)."""
     d = np.asarray(target, dtype=np.float64) - np.asarray(eye, dtype=np.float64)
-    return heading_pose(eye, float(np.arctan2(d[1], d[0])), float(np.arctan2(d[2], np.hypot(d[0], d[1]))))
+    return heading_pose(eye, portable_math.atan2(d[1], d[0]), portable_math.atan2(d[2], portable_math.hypot(d[0], d[1])))

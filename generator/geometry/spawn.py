@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from . import portable_math
 from .camera import heading_pose
 from .parts import MeshPart
 from .raycast import SceneGeometry
@@ -57,7 +58,8 @@ def respawn_pose(spawn_points: np.ndarray, current_pose: np.ndarray, rng: np.ran
     """A pose at a random spawn point (the first of ``tries`` draws that ``is_free``, else the
     last draw) with a random heading, the pitch of ``current_pose`` kept and no roll."""
     forward = current_pose[:3, 2]
-    pitch = math.asin(float(np.clip(forward[2], -0.999, 0.999)))
+    limit = portable_math.atan2(0.999, math.sqrt(1.0 - 0.999 * 0.999))  # asin 0.999
+    pitch = float(np.clip(portable_math.atan2(forward[2], portable_math.hypot(forward[0], forward[1])), -limit, limit))
     for _ in range(tries):
         p = spawn_points[rng.integers(len(spawn_points))]
         yaw = rng.uniform(0.0, 2 * math.pi)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry.portable_math import sincos
 from .meshes import MeshData
 
 
@@ -48,9 +49,9 @@ class Footprint:
 
     def corners(self) -> np.ndarray:
         lx, ly = self.size[0] / 2, self.size[1] / 2
-        c, s = np.cos(self.yaw), np.sin(self.yaw)
-        local = np.array([[-lx, -ly], [lx, -ly], [lx, ly], [-lx, ly]])
-        return local @ np.array([[c, s], [-s, c]]) + np.asarray(self.center)
+        s, c = sincos(self.yaw)
+        lx_, ly_ = np.array([-lx, lx, lx, -lx]), np.array([-ly, -ly, ly, ly])
+        return np.column_stack([lx_ * c - ly_ * s, lx_ * s + ly_ * c]) + np.asarray(self.center)
 
     def grown(self, margin: float) -> "Footprint":
         return Footprint(self.center, (self.size[0] + 2 * margin, self.size[1] + 2 * margin), self.yaw)

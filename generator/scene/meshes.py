@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.portable_math import sincos, vector_norm
+
 
 @dataclass
 class MeshData:
@@ -29,27 +31,27 @@ class MeshData:
 
 
 def rotation_z(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
+    s, c = sincos(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def rotation_x(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
+    s, c = sincos(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def rotation_y(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
+    s, c = sincos(a)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def frame_along(direction: np.ndarray) -> np.ndarray:
     """A rotation whose z axis is ``direction`` (normalised)."""
     z = np.asarray(direction, dtype=np.float64)
-    z = z / np.linalg.norm(z)
+    z = z / vector_norm(z)
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
+    x /= vector_norm(x)
     return np.stack([x, np.cross(z, x), z], axis=1)
 
 
@@ -58,7 +60,8 @@ def _axis_and_ring(p0, p1, segments: int):
     p0 = np.asarray(p0, float)
     axis = np.asarray(p1, float) - p0
     a = 2 * np.pi * np.arange(segments) / segments
-    return p0, axis, float(np.linalg.norm(axis)), np.stack([np.cos(a), np.sin(a), np.zeros(segments)], axis=1)
+    s, c = sincos(a)
+    return p0, axis, vector_norm(axis), np.stack([c, s, np.zeros(segments)], axis=1)
 
 
 class MeshBuilder:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.portable_math import sincos, tan
 from .assets import Asset, Part
 from .meshes import MeshBuilder
 
@@ -96,9 +97,9 @@ def cabin_block(rng: np.random.Generator) -> Asset:
 def _stadium(rho: float, half_ridge: float, n_arc: int, n_line: int) -> np.ndarray:
     """Points (N, 2), counter-clockwise, at distance ``rho`` from the segment
     [-half_ridge, half_ridge] x {0}: two half circles joined by straight lines."""
-    right = [(half_ridge + rho * np.cos(a), rho * np.sin(a)) for a in np.linspace(-np.pi / 2, np.pi / 2, n_arc, endpoint=False)]
+    right = [(half_ridge + rho * c, rho * s) for s, c in zip(*sincos(np.linspace(-np.pi / 2, np.pi / 2, n_arc, endpoint=False)))]
     top = [(x, rho) for x in np.linspace(half_ridge, -half_ridge, n_line, endpoint=False)]
-    left = [(-half_ridge + rho * np.cos(a), rho * np.sin(a)) for a in np.linspace(np.pi / 2, 3 * np.pi / 2, n_arc, endpoint=False)]
+    left = [(-half_ridge + rho * c, rho * s) for s, c in zip(*sincos(np.linspace(np.pi / 2, 3 * np.pi / 2, n_arc, endpoint=False)))]
     bottom = [(x, -rho) for x in np.linspace(-half_ridge, half_ridge, n_line, endpoint=False)]
     return np.array(right + top + left + bottom)
 
@@ -107,7 +108,7 @@ def material_pile(rng: np.random.Generator, kind: str) -> Asset:
     """A sand or gravel pile: a cone or a ridge at a 30-35 degree angle of repose, 1-3 m
     tall, with a rough surface. Its base is exactly its footprint on the ground."""
     height = rng.uniform(1.0, 3.0)
-    slope = np.tan(np.radians(rng.uniform(30, 35)))
+    slope = tan(np.radians(rng.uniform(30, 35)))
     ridge = rng.uniform(1.0, 4.0) if rng.random() < 0.5 else 0.0
     radius = height / slope
     rings, n_arc, n_line = 72, 128, 32 if ridge else 0  # ~5 cm radially, ~10 cm around

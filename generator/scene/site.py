@@ -14,10 +14,12 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from ..checks import check_integer, check_number
+from ..geometry.camera import apply_affine, matmul_exact
+from ..geometry.portable_math import atan2, sincos
 from ..geometry.seeding import stream
 from . import props, structures, vehicles
 from .assets import Asset, Footprint, Part, overlaps
-from .meshes import MeshBuilder
+from .meshes import MeshBuilder, rotation_x, rotation_y, rotation_z
 
 LAYOUTS = ("grid", "scattered", "clustered")
 
@@ -116,13 +118,12 @@ def _local_bounds(asset: Asset) -> tuple[np.ndarray, np.ndarray]:
     for part in asset.parts:
         m = np.eye(4)
         rx, ry, rz = part.rotation
-        cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
-        r = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]]) @ np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]]) @ np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        r = matmul_exact(matmul_exact(rotation_z(rz), rotation_y(ry)), rotation_x(rx))
         m[:3, :3], m[:3, 3] = r, part.location
         if part.parent is not None:
-            m = mats[part.parent] @ m
+            m = matmul_exact(mats[part.parent], m)
         mats.append(m)
-    pts = [p.mesh.vertices @ mats[i][:3, :3].T + mats[i][:3, 3] for i, p in enumerate(asset.parts) if p.mesh is not None and len(p.mesh.vertices)]
+    pts = [apply_affine(mats[i], p.mesh.vertices) for i, p in enumerate(asset.parts) if p.mesh is not None and len(p.mesh.vertices)]
     allp = np.concatenate(pts)[:, :2]
     lo, hi = allp.min(axis=0), allp.max(axis=0)
     # assets whose moving parts sweep more than their rest pose (excavators) declare a size
@@ -132,7 +133,7 @@ def _local_bounds(asset: Asset) -> tuple[np.ndarray, np.ndarray]:
 def _footprint(asset: Asset, position, yaw: float) -> Footprint:
     lo, hi = _local_bounds(asset)
     c_local = (lo + hi) / 2
-    c, s = math.cos(yaw), math.sin(yaw)
+    s, c = sincos(yaw)
     center = np.asarray(position) + np.array([c * c_local[0] - s * c_local[1], s * c_local[0] + c * c_local[1]])
     return Footprint((float(center[0]), float(center[1])), (float(hi[0] - lo[0]), float(hi[1] - lo[1])), yaw)
 
@@ -167,8 +168,8 @@ def _road_loop(half_inner: float, radius: float) -> np.ndarray:
     r = min(radius, half_inner * 0.5)
     for cx, cy, a0 in ((half_inner - r, -half_inner + r, -90), (half_inner - r, half_inner - r, 0),
                        (-half_inner + r, half_inner - r, 90), (-half_inner + r, -half_inner + r, 180)):
-        for a in np.radians(np.arange(a0, a0 + 90.001, 10)):
-            pts.append((cx + r * math.cos(a), cy + r * math.sin(a)))
+        for s, c in zip(*sincos(np.radians(np.arange(a0, a0 + 90.001, 10)))):
+            pts.append((cx + r * c, cy + r * s))
     return np.array(pts)
 
 
@@ -276,7 +277,7 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
             side = crng.choice([-1, 1])
             along = crng.uniform(-0.4, 0.4) * fp.size[0]
             offset = fp.size[1] / 2 + 5.5
-            c, s = math.cos(fp.yaw), math.sin(fp.yaw)
+            s, c = sincos(fp.yaw)
             pos = np.array(fp.center) + np.array([c * along - s * side * offset, s * along + c * side * offset])
             far = max(np.linalg.norm(fp.corners() - pos, axis=1))
             jib = float(np.clip(far + 3.0, 20.0, 60.0))
@@ -388,5 +389,5 @@ def ground_part(size: float) -> Part:
 
 def fence_part(start: np.ndarray, end: np.ndarray) -> Part:
     length = float(np.linalg.norm(end - start))
-    yaw = math.atan2(end[1] - start[1], end[0] - start[0])
+    yaw = atan2(end[1] - start[1], end[0] - start[0])
     return Part("Fence", props.fence_run(length).build(), location=(float(start[0]), float(start[1]), 0.0), rotation=(0.0, 0.0, yaw))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.portable_math import atan2, sincos
 from .assets import Asset, Keyframes, Part
 from .meshes import MeshBuilder, rotation_y
 
@@ -17,7 +18,7 @@ def _wheel() -> MeshBuilder:
     core = WHEEL_R - 0.02
     w.cylinder(core, (0, -WHEEL_W / 2, 0), (0, WHEEL_W / 2, 0), segments=32, material="rubber")
     for a in np.arange(0, 2 * np.pi, 2 * np.pi / 24):  # tread blocks, outer corners within WHEEL_R
-        c, s = np.cos(a), np.sin(a)
+        s, c = sincos(a)
         mid = core + 0.0075  # blocks span [core - 0.004, WHEEL_R - 0.001] radially
         w.box((0.06, WHEEL_W - 0.04, 0.023), (c * mid, 0, s * mid), rotation=rotation_y(-a + np.pi / 2), material="rubber")
     for s in (-1, 1):
@@ -35,7 +36,7 @@ def route_poses(points: np.ndarray, speed: float, frames: int, fps: float, offse
     """
     seg = np.diff(np.vstack([points, points[:1]]), axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
-    heading = np.arctan2(seg[:, 1], seg[:, 0])
+    heading = atan2(seg[:, 1], seg[:, 0])
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
     perimeter = cum[-1]
     total = speed * (frames - 1) / fps
