@@ -1,9 +1,13 @@
-"""The float64 geometry of the pixel ground truth gives the same bits whatever BLAS kernel
-numpy's OpenBLAS picks for the CPU (docs/guarantees.md, "Same bytes"): the moving parts'
-world vertices (the triangles the depth is cast into), the motion optical flow applies, and
-the camera transforms of the COLMAP, COCO and box exports.
-OpenBLAS picks its kernel by CPU model; ``OPENBLAS_CORETYPE`` makes it pretend to be another
-one, which is how a second machine is stood in for here."""
+"""The float64 geometry of a seed gives the same bits whatever kernels the CPU makes numpy,
+OpenBLAS and the C library pick (docs/guarantees.md, "Same bytes"): the moving parts' world
+vertices (the triangles the depth is cast into), the motion optical flow applies, the camera
+transforms of the COLMAP, COCO and box exports, the site's plan, the trajectories' poses and
+the 3D boxes.
+Each library picks its kernels by CPU model; environment variables make it pretend to be
+another one, which is how a second machine is stood in for here: ``OPENBLAS_CORETYPE``
+(OpenBLAS), ``NPY_DISABLE_CPU_FEATURES`` (numpy's SIMD loops, e.g. its AVX-512 ``arctan2``
+and ``power``) and ``GLIBC_TUNABLES`` (the C library's FMA variants of ``sin``, ``cos``,
+``atan2``)."""
 
 import subprocess
 import sys
@@ -15,6 +19,17 @@ from generator.geometry.camera import affine_inverse, matmul_exact
 
 ROOT = Path(__file__).resolve().parents[1]
 CORES = ("Sandybridge", "Haswell", "SkylakeX")  # no FMA; AVX2 + FMA; AVX-512
+# the same three CPUs for numpy and the C library too
+NUMPY_OFF = {"Sandybridge": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR", "Haswell": "X86_V4 AVX512_ICL AVX512_SPR",
+             "SkylakeX": ""}
+GLIBC_OFF = {"Sandybridge": "glibc.cpu.hwcaps=-AVX2,-FMA,-AVX512F", "Haswell": "glibc.cpu.hwcaps=-AVX512F",
+             "SkylakeX": ""}
+
+
+def _stand_in(core: str) -> dict:
+    """The environment that makes this machine's numpy, OpenBLAS and C library act as on ``core``."""
+    return {"OPENBLAS_CORETYPE": core, "NPY_DISABLE_CPU_FEATURES": NUMPY_OFF[core], "GLIBC_TUNABLES": GLIBC_OFF[core],
+            "PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
 
 PROBE = """
 import hashlib, sys
@@ -48,9 +63,9 @@ print(ours.hexdigest(), numpys.hexdigest())
 """
 
 
-def _digests(core: str) -> tuple[str, str]:
-    env = {"OPENBLAS_CORETYPE": core, "PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
-    out = subprocess.run([sys.executable, "-c", PROBE], env=env, cwd=ROOT, capture_output=True, text=True, check=True)
+def _digests(core: str, probe: str = PROBE) -> tuple[str, str]:
+    out = subprocess.run([sys.executable, "-c", probe], env=_stand_in(core), cwd=ROOT, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
     ours, numpys = out.stdout.split()
     return ours, numpys
 
@@ -75,3 +90,73 @@ def test_affine_inverse_and_products_are_float64_exact_to_round_off():
     assert np.abs(matmul_exact(inv, m) - np.eye(4)).max() < 1e-12
     a, b = rng.normal(size=(7, 2, 3)), rng.normal(size=(7, 3, 5))
     assert np.allclose(matmul_exact(a, b), a @ b, rtol=0, atol=1e-14)
+
+
+SITE_PROBE = """
+import dataclasses, hashlib, math
+import numpy as np
+from generator.geometry.boxes import upright_box
+from generator.scene.site import plan_site, site_params
+from generator.scene.vehicles import route_poses
+from trajectories import lawnmower, modified_random_walk, orbit, random_walk, spline_flythrough
+
+ours, numpys = hashlib.sha256(), hashlib.sha256()
+
+
+def feed(o):
+    if isinstance(o, np.ndarray):
+        ours.update(o.tobytes() if o.dtype != object else repr(o).encode())
+    elif dataclasses.is_dataclass(o):
+        for f in dataclasses.fields(o):
+            feed(getattr(o, f.name))
+    elif isinstance(o, dict):
+        for k, v in o.items():
+            feed(k), feed(v)
+    elif isinstance(o, (list, tuple)):
+        for v in o:
+            feed(v)
+    else:
+        ours.update(repr(o).encode())
+
+
+class Free:  # every move allowed: only the poses' arithmetic is compared
+    def can_move(self, a, b):
+        return True
+
+    def is_free(self, p):
+        return True
+
+
+plan = plan_site(5, site_params("medium"))
+feed(plan)
+free, start = Free(), np.eye(4)
+start[:3, 3] = (3.0, -2.0, 12.0)
+for traj in (orbit(free, (1.5, -2.0), 37.0, 25.0, 40), spline_flythrough(free, ((-40, -40, 5), (40, 40, 30)), 40, np.random.default_rng(1)),
+             lawnmower(free, ((-40, -30), (40, 30)), 30.0, 40, 12.0), random_walk(free, start, 40, np.random.default_rng(2)),
+             modified_random_walk(free, start, 40, np.random.default_rng(3))):
+    feed(traj.poses)
+rng = np.random.default_rng(4)
+for _ in range(30):
+    box = upright_box(rng.normal(size=(200, 3)) * rng.uniform(0.5, 20, 3))
+    q = rng.normal(size=4)
+    w, a, b, c = q / np.sqrt((q * q).sum())  # a rotation made without BLAS or LAPACK
+    m = np.eye(4)
+    m[:3, :3] = np.array([[1 - 2 * (b * b + c * c), 2 * (a * b - c * w), 2 * (a * c + b * w)],
+                          [2 * (a * b + c * w), 1 - 2 * (a * a + c * c), 2 * (b * c - a * w)],
+                          [2 * (a * c - b * w), 2 * (b * c + a * w), 1 - 2 * (a * a + b * b)]]) * rng.uniform(0.5, 2)
+    m[:3, 3] = rng.uniform(-100, 100, 3)
+    feed(m), feed(box), feed(box.transformed(m))
+feed(route_poses(plan.road, 5.0, 60, 10.0, 3.0))
+x = rng.uniform(-30, 30, (4000, 3))
+for a in (np.arctan2(x[:, 0], x[:, 1]), x[:, 2] ** 3, np.sin(x[:, 0] * 1e3), np.array([np.linalg.norm(v) for v in x])):
+    numpys.update(a.tobytes())  # the control: numpy's own arctan2, power, sine and 1-D norms
+print(ours.hexdigest(), numpys.hexdigest())
+"""
+
+
+def test_site_plans_trajectories_and_boxes_do_not_depend_on_the_cpu():
+    """A site's plan (every asset's mesh, footprint and keyframes), the poses of all five
+    trajectory kinds, 3D boxes and vehicle routes, under the three stand-in CPUs."""
+    digests = [_digests(core, SITE_PROBE) for core in CORES]
+    assert len({ours for ours, _ in digests}) == 1, "a seed's geometry changes with the CPU's kernels"
+    assert len({numpys for _, numpys in digests}) == 3, "the stand-ins did not change numpy and the C library"

@@ -97,22 +97,23 @@ def orthonormalize(rotation: np.ndarray) -> np.ndarray:
     mirror) it is :func:`polar_factor`, the same bits on every CPU; a mirror goes through
     LAPACK's SVD (the rotation nearest to it, not a reflection)."""
     r = np.asarray(rotation, dtype=np.float64)
-    if _inverse_transpose_3x3(r)[1] > 0:
+    if _cofactors_3x3(r)[1] > 0:
         return polar_factor(r)
     u, _, vt = np.linalg.svd(r)
     u[:, -1] *= -1
     return u @ vt
 
 
-def _inverse_transpose_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
-    """(a^-T, det a) of a 3x3 matrix from its cofactors, in a fixed order of IEEE operations."""
+def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
+    """(cofactor matrix, det a) of a 3x3 matrix in a fixed order of IEEE operations; the
+    cofactors over the determinant are the inverse transpose."""
     cof = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
             i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
             cof[i, j] = a[i1, j1] * a[i2, j2] - a[i1, j2] * a[i2, j1]
     det = float((a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1]) + a[0, 2] * cof[0, 2])
-    return cof / det, det
+    return cof, det
 
 
 def polar_factor(a: np.ndarray, iterations: int = 30) -> np.ndarray:
@@ -121,10 +122,11 @@ def polar_factor(a: np.ndarray, iterations: int = 30) -> np.ndarray:
     converges quadratically from a matrix near a rotation times scale; IEEE operations in a
     fixed order, so the same bits on every CPU (LAPACK's SVD picks its kernel by CPU)."""
     x = np.array(a, dtype=np.float64)
-    if not np.isfinite(x).all() or _inverse_transpose_3x3(x)[1] == 0:
+    if not np.isfinite(x).all() or _cofactors_3x3(x)[1] == 0:
         raise ValueError("polar_factor needs a finite, invertible 3x3 matrix")
     for _ in range(iterations):
-        nxt = 0.5 * (x + _inverse_transpose_3x3(x)[0])
+        cof, det = _cofactors_3x3(x)
+        nxt = 0.5 * (x + cof / det)
         done = np.array_equal(nxt, x)
         x = nxt
         if done:

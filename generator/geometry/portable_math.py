@@ -31,7 +31,7 @@ import numpy as np
 
 MAX_ANGLE = 1e5  # radians: the range reduction below is exact for |k| < 2**20 quarter turns
 
-# pi/2 = PIO2_1 + PIO2_2 + PIO2_3 to ~1e-90: the first two have 33 significant bits, so
+# pi/2 = PIO2_1 + PIO2_2 + PIO2_3 to ~1e-37: the first two have 33 significant bits, so
 # k * PIO2_1 and k * PIO2_2 are exact for |k| < 2**20 (the test re-derives all constants).
 PIO2_1 = float.fromhex("0x1.921fb54400000p+0")
 PIO2_2 = float.fromhex("0x1.0b4611a600000p-34")

@@ -81,7 +81,7 @@ def overlaps(a: Footprint, b: Footprint) -> bool:
         for k in range(4):
             edge = poly[(k + 1) % 4] - poly[k]
             axis = np.array([-edge[1], edge[0]])
-            pa, pb = ca @ axis, cb @ axis
+            pa, pb = ca[:, 0] * axis[0] + ca[:, 1] * axis[1], cb[:, 0] * axis[0] + cb[:, 1] * axis[1]
             if pa.max() <= pb.min() or pb.max() <= pa.min():
                 return False
     return True

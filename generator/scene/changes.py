@@ -22,6 +22,8 @@ import numpy as np
 
 from exporters.changes import STATUS  # codes 0..4 in changes.h5
 
+from ..geometry.camera import apply_affine, polar_factor, rows_times
+
 ABSENT = -1  # the status of an object in neither stage
 POINT_TOLERANCE = 0.01  # metres: a point is unchanged if the other stage's surface is within this
 DEPTH_TOLERANCE = 0.01  # metres of planar depth at a pixel
@@ -37,14 +39,27 @@ def union_table(stage_names: list[list[str]]) -> tuple[list[str], list[np.ndarra
 
 def rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """4x4 rigid transform T (rotation, translation) minimising |T a - b| over matched rows,
-    and the largest residual in metres (Kabsch)."""
+    and the largest residual in metres (Kabsch: the rotation is the polar factor of the
+    cross-covariance's transpose). Without BLAS or LAPACK, so the same bits on every CPU
+    (docs/guarantees.md), except for point sets whose cross-covariance is singular or
+    mirrored (flat or degenerate parts), which go through LAPACK's SVD."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     ca, cb = a.mean(axis=0), b.mean(axis=0)
-    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    da, db = a - ca, b - cb
+    h = np.array([[np.sum(da[:, i] * db[:, j]) for j in range(3)] for i in range(3)])  # (a - ca)^T (b - cb)
+    r = None
+    if np.isfinite(h).all():
+        try:
+            r = polar_factor(h.T)
+        except ValueError:  # singular: a flat or degenerate set of points
+            pass
+    if r is None or np.sum(np.cross(r[:, 0], r[:, 1]) * r[:, 2]) < 0:  # singular or a mirror: SVD with the sign fix
+        u, _, vt = np.linalg.svd(h)
+        d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
+        r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     t = np.eye(4)
-    t[:3, :3], t[:3, 3] = r, cb - r @ ca
-    residual = float(np.max(np.linalg.norm(a @ r.T + t[:3, 3] - b, axis=1))) if len(a) else 0.0
+    t[:3, :3], t[:3, 3] = r, cb - rows_times(ca, r.T)
+    residual = float(np.max(np.linalg.norm(apply_affine(t, a) - b, axis=1))) if len(a) else 0.0
     return t, residual
 
 

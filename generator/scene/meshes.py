@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.camera import rows_times
 from ..geometry.portable_math import sincos, vector_norm
 
 
@@ -85,7 +86,7 @@ class MeshBuilder:
         """Add raw geometry (local vertices, optionally rotated then offset)."""
         v = np.asarray(verts, dtype=np.float64).reshape(-1, 3)
         if rotation is not None:
-            v = v @ np.asarray(rotation).T
+            v = rows_times(v, np.asarray(rotation, dtype=np.float64).T)  # v R^T without BLAS
         if offset is not None:
             v = v + np.asarray(offset, dtype=np.float64)
         slot = self._slot(material)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.portable_math import sincos, tan
+from ..geometry.portable_math import sincos, tan, vector_norm
 from .assets import Asset, Part
 from .meshes import MeshBuilder
 
@@ -295,12 +295,12 @@ def skip(rng: np.random.Generator) -> Asset:
                 offset=(0, s * (width / 2 - t / 2), 0), material="skip_paint")
         # sloped end wall: a plate from the floor's end up to the rim
         bottom, top = np.array([s * (length - 1.0) / 2, 0, 0]), np.array([s * length / 2, 0, height])
-        ex = (top - bottom) / np.linalg.norm(top - bottom)
+        ex = (top - bottom) / vector_norm(top - bottom)
         ey = np.array([0.0, 1.0, 0.0])
         ez = np.cross(ex, ey)
         rot = np.column_stack([ex, ey, ez])
         lift = np.array([0.0, 0.0, abs(ez[2]) * t / 2 + 1e-3])  # the plate's lower edge stays on the ground
-        b.box((np.linalg.norm(top - bottom), width - 2 * t - 0.01, t), (bottom + top) / 2 + lift, rotation=rot, material="skip_paint")
+        b.box((vector_norm(top - bottom), width - 2 * t - 0.01, t), (bottom + top) / 2 + lift, rotation=rot, material="skip_paint")
     if rng.random() < 0.6:
         fill = rng.uniform(0.2, 0.8)
         b.box((length - 1.2, width - 2 * t - 0.05, fill), (0, 0, t + fill / 2 + 0.001), material="rubble")

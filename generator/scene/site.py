@@ -15,7 +15,7 @@ import numpy as np
 
 from ..checks import check_integer, check_number
 from ..geometry.camera import apply_affine, matmul_exact
-from ..geometry.portable_math import atan2, sincos
+from ..geometry.portable_math import atan2, sincos, vector_norm
 from ..geometry.seeding import stream
 from . import props, structures, vehicles
 from .assets import Asset, Footprint, Part, overlaps
@@ -284,7 +284,7 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
             hook = plan.hook_height
             ok = True
             for q, reach, top in cranes:
-                d = float(np.linalg.norm(pos - q))
+                d = vector_norm(pos - q)
                 if d >= jib + reach + 4.0:
                     continue
                 if d >= max(jib, reach) + 3.0:
@@ -388,6 +388,6 @@ def ground_part(size: float) -> Part:
 
 
 def fence_part(start: np.ndarray, end: np.ndarray) -> Part:
-    length = float(np.linalg.norm(end - start))
+    length = vector_norm(end - start)
     yaw = atan2(end[1] - start[1], end[0] - start[0])
     return Part("Fence", props.fence_run(length).build(), location=(float(start[0]), float(start[1]), 0.0), rotation=(0.0, 0.0, yaw))

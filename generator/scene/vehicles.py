@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.camera import matmul_exact, rows_times
 from ..geometry.portable_math import atan2, sincos
 from .assets import Asset, Keyframes, Part
 from .meshes import MeshBuilder, rotation_y
@@ -126,12 +127,12 @@ def _excavator_bucket_lowest(boom, arm, bucket, geom) -> float:
     lowest = np.inf
     for b, a, c in zip(boom, arm, bucket):
         r1 = rotation_y(-b)
-        p_arm = pivot + r1 @ np.array([geom["boom"], 0, 0])
-        r2 = r1 @ rotation_y(a)
-        p_bucket = p_arm + r2 @ np.array([geom["arm"], 0, 0])
-        r3 = r2 @ rotation_y(c)
+        p_arm = pivot + rows_times(np.array([geom["boom"], 0, 0]), r1.T)  # r1 @ v, without BLAS
+        r2 = matmul_exact(r1, rotation_y(a))
+        p_bucket = p_arm + rows_times(np.array([geom["arm"], 0, 0]), r2.T)
+        r3 = matmul_exact(r2, rotation_y(c))
         for corner in ((1.1, 0, -0.6), (0, 0, -0.8), (1.1, 0, 0.2)):
-            lowest = min(lowest, (p_bucket + r3 @ np.array(corner))[2])
+            lowest = min(lowest, (p_bucket + rows_times(np.array(corner, dtype=np.float64), r3.T))[2])
     return lowest
 
 
