@@ -110,7 +110,7 @@ def read_colmap_model(folder: str | Path) -> ColmapModel:
         r = m[:3, :3]
         if not np.isfinite(m).all() or abs(np.linalg.det(r) - 1) > 1e-6 or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
             raise ColmapError(f"{folder}: image {im.name!r} has no proper rotation (unit quaternion); re-export the model")
-        poses[k] = np.linalg.inv(m)
+        poses[k] = invert_rigid(m)  # world_from_camera, BLAS-free
     return ColmapModel(K, width, height, [im.name for im in images], poses)
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ..geometry.camera import affine_inverse, apply_affine, matmul_exact
 from ..geometry.parts import MeshPart, closed_and_orientation
 from .animation import dynamic_object_names
 
@@ -81,7 +82,7 @@ def _hidden_spawn_volume() -> MeshPart | None:
         if obj.type == "MESH" and label_of(obj.name) == SPAWN_LABEL and len(obj.data.polygons):
             verts, faces = _mesh_arrays(obj.data)
             world = _matrix(obj.matrix_world)
-            wv = verts @ world[:3, :3].T + world[:3, 3]
+            wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
             c, o = closed_and_orientation(wv, faces)
             return MeshPart(obj.name, SPAWN_LABEL, wv, faces.copy(), closed=c, outward=o)
     return None
@@ -129,7 +130,7 @@ def extract_parts() -> ExtractedScene:
             continue
         label = label_of(name)
         if label == SPAWN_LABEL:
-            wv = verts @ world[:3, :3].T + world[:3, 3]
+            wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
             c, o = closed_and_orientation(wv, faces)
             spawn = MeshPart(key, label, wv, faces.copy(), closed=c, outward=o)
             continue
@@ -141,11 +142,11 @@ def extract_parts() -> ExtractedScene:
     parts, bindings = [], []
     for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, source in found:
         if is_dyn:
-            offset = np.linalg.inv(parent_world) @ world if parent_world is not None else np.eye(4)
+            offset = matmul_exact(affine_inverse(parent_world), world) if parent_world is not None else np.eye(4)
             bindings.append(DynamicBinding(len(parts), driver, offset))
             parts.append(MeshPart(key, label, verts.copy(), faces, True, world, closed, outward, source))
         else:
-            wv = verts @ world[:3, :3].T + world[:3, 3]
+            wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
             if np.linalg.det(world[:3, :3]) < 0:
                 outward = -outward  # a mirroring matrix flips the winding
             parts.append(MeshPart(key, label, wv, faces, False, np.eye(4), closed, outward, source))

@@ -281,8 +281,7 @@ def depth_to_world_points(depth: np.ndarray, K: np.ndarray, world_from_camera: n
     rays = pixel_rays(K, w, h)
     valid = np.isfinite(depth) & (depth > 0)
     pc = rays * np.where(valid, depth, np.nan)[..., None]
-    r = world_from_camera[:3, :3]
-    return pc @ r.T + world_from_camera[:3, 3]
+    return apply_affine(world_from_camera, pc)  # BLAS-free: the same bits on every CPU
 
 
 def translated_along_axis(world_from_camera: np.ndarray, axis: int, distance: float) -> np.ndarray:
