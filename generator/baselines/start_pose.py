@@ -39,16 +39,16 @@ def find_gate(fence_runs) -> Gate:
     centre = np.mean([p for run in runs for p in run], axis=0)
     best = None
     for i, (a0, a1) in enumerate(runs):
-        d = (a1 - a0) / np.linalg.norm(a1 - a0)
+        d = (a1 - a0) / portable_math.vector_norm(a1 - a0)
         for j, (b0, b1) in enumerate(runs):
             if i == j:
                 continue
-            e = (b1 - b0) / np.linalg.norm(b1 - b0)
+            e = (b1 - b0) / portable_math.vector_norm(b1 - b0)
             gap = b0 - a1
             parallel = abs(d[0] * e[1] - d[1] * e[0]) < 1e-9 and float(d @ e) > 0
             on_line = abs(d[0] * (b0 - a0)[1] - d[1] * (b0 - a0)[0]) < 1e-6
-            if parallel and on_line and float(gap @ d) > 0 and (best is None or np.linalg.norm(gap) > best[0]):
-                best = (float(np.linalg.norm(gap)), (a1 + b0) / 2, d)
+            if parallel and on_line and float(gap @ d) > 0 and (best is None or portable_math.vector_norm(gap) > best[0]):
+                best = (portable_math.vector_norm(gap), (a1 + b0) / 2, d)
     if best is None:
         raise ValueError("the site's fence has no gap between two runs on one line, so no gate to start from")
     width, mid, d = best

@@ -159,7 +159,7 @@ def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
     out = {}
     for b in bindings:
         obj = bpy.data.objects[b.driver].evaluated_get(depsgraph)
-        out[b.part] = _matrix(obj.matrix_world) @ b.offset
+        out[b.part] = matmul_exact(_matrix(obj.matrix_world), b.offset)  # BLAS-free
     return out
 
 

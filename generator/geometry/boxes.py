@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import apply_affine, matmul_exact, polar_factor, rows_times, world_to_camera
+from .camera import apply_affine, matmul_exact, orthogonal_factor, rows_times, world_to_camera
 from .portable_math import vector_norm
 
 NEAR = 1e-6  # metres: geometry at planar depth below this is treated as behind the camera
@@ -53,7 +53,7 @@ class Box3D:
         m = np.asarray(matrix, float)
         axes = matmul_exact(m[:3, :3], self.rotation)
         lengths = vector_norm(axes.T)
-        rotation = polar_factor(axes / np.where(lengths > 0, lengths, 1.0))  # exact when m does not shear
+        rotation = orthogonal_factor(axes / np.where(lengths > 0, lengths, 1.0))  # exact when m does not shear
         return Box3D(apply_affine(m, self.centre), self.size * lengths, rotation)
 
 

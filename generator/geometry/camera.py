@@ -92,16 +92,28 @@ def intrinsics_from_blender(
 
 
 def orthonormalize(rotation: np.ndarray) -> np.ndarray:
-    """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale. With a
-    positive determinant (a rotation times scale: every matrix of a Blender object without a
-    mirror) it is :func:`polar_factor`, the same bits on every CPU; a mirror goes through
-    LAPACK's SVD (the rotation nearest to it, not a reflection)."""
-    r = np.asarray(rotation, dtype=np.float64)
-    if _cofactors_3x3(r)[1] > 0:
-        return polar_factor(r)
-    u, _, vt = np.linalg.svd(r)
+    """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale. For a
+    rotation times a well-conditioned scale (every matrix of a Blender object without a
+    mirror) it is :func:`polar_factor`, the same bits on every CPU; a mirror, a singular or a
+    badly conditioned matrix goes through LAPACK's SVD (and a mirror gives the rotation
+    nearest to it, not a reflection)."""
+    q = orthogonal_factor(rotation)
+    if _cofactors_3x3(q)[1] > 0:
+        return q
+    u, _, vt = np.linalg.svd(np.asarray(rotation, dtype=np.float64))
     u[:, -1] *= -1
     return u @ vt
+
+
+def orthogonal_factor(a: np.ndarray) -> np.ndarray:
+    """The orthogonal matrix nearest to a 3x3 matrix (U V^T of its SVD): :func:`polar_factor`,
+    the same bits on every CPU, where it applies; LAPACK's SVD for the singular or badly
+    conditioned matrices it refuses."""
+    try:
+        return polar_factor(a)
+    except ValueError:
+        u, _, vt = np.linalg.svd(np.asarray(a, dtype=np.float64))
+        return u @ vt
 
 
 def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
@@ -116,21 +128,37 @@ def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
     return cof, det
 
 
-def polar_factor(a: np.ndarray, iterations: int = 30) -> np.ndarray:
+POLAR_MAX_CONDITION = 1e8  # ||a||_F ||a^-1||_F above this: polar_factor refuses the matrix
+
+
+def _frobenius(a: np.ndarray) -> float:
+    return float(np.sqrt(np.sum(a * a)))
+
+
+def polar_factor(a: np.ndarray, iterations: int = 60) -> np.ndarray:
     """The orthogonal matrix nearest to an invertible 3x3 matrix (U V^T of its SVD: a rotation
-    when the determinant is positive) by Newton's iteration X <- (X + X^-T) / 2, which
-    converges quadratically from a matrix near a rotation times scale; IEEE operations in a
-    fixed order, so the same bits on every CPU (LAPACK's SVD picks its kernel by CPU)."""
+    when the determinant is positive) by Newton's iteration with Higham's scaling,
+    X <- (g X + X^-T / g) / 2 with g = sqrt(|X^-1|_F / |X|_F), then unscaled steps until X
+    stops changing; IEEE operations in a fixed order, so the same bits on every CPU (LAPACK's
+    SVD picks its kernel by CPU). Raises ValueError for a matrix that is not finite, singular
+    or worse conditioned than POLAR_MAX_CONDITION, or if the result is not orthogonal to
+    1e-12 (callers fall back to the SVD: :func:`orthogonal_factor`)."""
     x = np.array(a, dtype=np.float64)
-    if not np.isfinite(x).all() or _cofactors_3x3(x)[1] == 0:
-        raise ValueError("polar_factor needs a finite, invertible 3x3 matrix")
-    for _ in range(iterations):
+    if x.shape != (3, 3) or not np.isfinite(x).all():
+        raise ValueError("polar_factor needs a finite 3x3 matrix")
+    cof, det = _cofactors_3x3(x)
+    if det == 0 or not np.isfinite(cof / det).all() or _frobenius(x) * _frobenius(cof / det) > POLAR_MAX_CONDITION:
+        raise ValueError("polar_factor needs an invertible, well-conditioned 3x3 matrix")
+    for k in range(iterations):
         cof, det = _cofactors_3x3(x)
-        nxt = 0.5 * (x + cof / det)
-        done = np.array_equal(nxt, x)
-        x = nxt
-        if done:
+        inv_t = cof / det
+        g = np.sqrt(_frobenius(inv_t) / _frobenius(x)) if k < 8 else 1.0  # scaling only while far off
+        nxt = 0.5 * (g * x + inv_t / g)
+        if np.array_equal(nxt, x):
             break
+        x = nxt
+    if np.abs(matmul_exact(x.T, x) - np.eye(3)).max() > 1e-12:
+        raise ValueError("polar_factor did not converge (a badly conditioned matrix)")
     return x
 
 

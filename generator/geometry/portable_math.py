@@ -3,12 +3,12 @@
 numpy's float64 ``sin``/``cos`` call the C library, whose x86-64 build picks an FMA or a
 plain variant by CPU, and its ``arctan2``, ``arctan``, ``tan``, ``exp``, ``log`` and
 ``power`` use AVX-512 kernels where the CPU has them: all round differently by machine
-(``tests/test_portable_math.py`` shows it with ``GLIBC_TUNABLES`` and
+(``tests/test_same_bytes.py`` shows it with ``GLIBC_TUNABLES`` and
 ``NPY_DISABLE_CPU_FEATURES`` as stand-ins for other CPUs). A site, its trajectories and its
 boxes are made from angles, so a seed's geometry went through them. The functions here use
 only IEEE float64 multiplies, adds, divides and square roots in a fixed order (numba without
 ``fastmath`` neither reorders nor fuses them), so their results do not depend on the CPU.
-They are within 1 ulp of the true value (0.75 ulp at most over the test's samples, against
+``sin``, ``cos`` and ``atan2`` are within 1 ulp of the true value (0.75 ulp at most over the test's samples, against
 references in exact integer arithmetic: ``tests/fixed_point_math.py``); the C library is
 within 0.51 ulp, so the two may differ in the last bit.
 
@@ -55,6 +55,7 @@ COS_COEFFS = np.array([(-1.0) ** k / math.factorial(2 * k + 4) for k in range(10
 # below 1e-18 relative for |u| <= 7/16.
 ATAN_COEFFS = np.array([(-1.0) ** k / (2 * k + 1) for k in range(1, 25)])
 SPLITTER = 134217729.0  # 2^27 + 1: Veltkamp's split of a float64 into two 26-bit halves
+TINY = 2.0 ** -900  # below this, atan t = t to the last bit and Dekker's product could underflow
 
 
 @numba.njit(cache=True, nogil=True)
@@ -120,8 +121,16 @@ def _sincos_array(x, s, c):
 
 
 @numba.njit(cache=True, nogil=True)
+def _two_diff(a, b):
+    """(s, e) with s = fl(a - b) and a - b = s + e exactly (Knuth's two-sum of a and -b)."""
+    s = a - b
+    bv = s - a
+    return s, (a - (s - bv)) - (b + bv)
+
+
+@numba.njit(cache=True, nogil=True)
 def _product_error(a, b):
-    """a b - fl(a b) exactly (Dekker's product without FMA; |a|, |b| below 1e290)."""
+    """a b - fl(a b) exactly (Dekker's product without FMA; |a|, |b| <= 1 and a b not tiny)."""
     p = a * b
     ca, cb = SPLITTER * a, SPLITTER * b
     ah, bh = ca - (ca - a), cb - (cb - b)
@@ -158,14 +167,20 @@ def _atan2_one(y, x):
         t, tt = 0.0, 0.0
     else:
         num, den = (ax, ay) if swapped else (ay, ax)
+        if den != math.inf:  # scale both by a power of two (exact) so that 0.5 <= den < 1
+            exponent = math.frexp(den)[1]
+            num, den = math.ldexp(num, -exponent), math.ldexp(den, -exponent)
         t = num / den
         # the division's rounding error: num = t den + (num - t den), the last term exact
-        tt = ((num - t * den) - _product_error(t, den)) / den if den < 1e290 else 0.0
+        # (Dekker's product; below 2^-900 t alone is atan t to the last bit)
+        tt = ((num - t * den) - _product_error(t, den)) / den if TINY < t and den != math.inf else 0.0
     hi, lo = _atan_unit(t, tt)
-    if swapped:  # pi/2 - atan t
-        hi, lo = PIO2_HI - hi, PIO2_LO - lo
+    if swapped:  # pi/2 - atan t, the subtraction's rounding error carried into the tail
+        hi, err = _two_diff(PIO2_HI, hi)
+        lo = (PIO2_LO - lo) + err
     if x < 0.0 or (x == 0.0 and math.copysign(1.0, x) < 0.0):  # pi - a
-        hi, lo = PI_HI - hi, PI_LO - lo
+        hi, err = _two_diff(PI_HI, hi)
+        lo = (PI_LO - lo) + err
     a = hi + lo
     return -a if (y < 0.0 or (y == 0.0 and math.copysign(1.0, y) < 0.0)) else a
 
@@ -204,14 +219,15 @@ def cos(x):
 
 
 def tan(x):
-    """tan x = sin x / cos x (within 2 ulp), x in radians (see :func:`sincos`)."""
+    """tan x = sin x / cos x (within 3 ulp: two results within 1 ulp and a division), x in
+    radians (see :func:`sincos`)."""
     s, c = sincos(x)
     return s / c
 
 
 def atan2(y, x):
-    """The angle of (x, y) in radians, in (-pi, pi] (C's conventions for zeros and NaN);
-    the same bits on every CPU."""
+    """The angle of (x, y) in radians, in [-pi, pi] (C's conventions for signed zeros,
+    infinities and NaN); the same bits on every CPU."""
     y, x = np.broadcast_arrays(np.asarray(y, dtype=np.float64), np.asarray(x, dtype=np.float64))
     fy, fx = np.ascontiguousarray(y.ravel()), np.ascontiguousarray(x.ravel())
     out = np.empty_like(fx)

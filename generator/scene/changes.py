@@ -41,8 +41,8 @@ def rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """4x4 rigid transform T (rotation, translation) minimising |T a - b| over matched rows,
     and the largest residual in metres (Kabsch: the rotation is the polar factor of the
     cross-covariance's transpose). Without BLAS or LAPACK, so the same bits on every CPU
-    (docs/guarantees.md), except for point sets whose cross-covariance is singular or
-    mirrored (flat or degenerate parts), which go through LAPACK's SVD."""
+    (docs/guarantees.md), except for point sets whose cross-covariance is singular, badly
+    conditioned or mirrored (flat or nearly flat parts), which go through LAPACK's SVD."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     ca, cb = a.mean(axis=0), b.mean(axis=0)
     da, db = a - ca, b - cb
