@@ -150,6 +150,34 @@ def test_failed_seed_is_reported_and_others_finish(tmp_path):
     assert r2.returncode == 0 and "seed 6: already complete" in r2.stdout and "seed 5" not in r2.stdout
 
 
+def test_an_attempt_waits_for_the_worker_of_an_earlier_one_before_touching_the_seed(tmp_path):
+    """A process of an earlier attempt that still holds the seed's work lock (as a Ray task's
+    worker does for 1-3 s after its driver is killed with SIGKILL, when the driver's own lock
+    is already released) keeps a new run away from the seed's partial folder until it has
+    exited; then the new run redoes the seed (docs/scale.md)."""
+    from exporters.manifest import PARTIAL_MARKER
+    from generator.batch import folders
+
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    partial, _ = folders.start_partial(tmp_path, 5)  # the earlier attempt's partial folder
+    marker = (partial / PARTIAL_MARKER).read_text()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time; from pathlib import Path; from generator.batch import folders\n"
+         "lock = folders.SeedLock.wait_for_work(Path(sys.argv[1]), 5, 0)\nprint(lock is not None, flush=True)\n"
+         "time.sleep(4)", str(tmp_path)], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "True"
+    run_ = subprocess.Popen([sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "5"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while holder.poll() is None:  # the new run leaves the earlier attempt's folder alone meanwhile
+        assert (partial / PARTIAL_MARKER).read_text() == marker
+        time.sleep(0.02)
+    stdout, stderr = run_.communicate(timeout=300)
+    assert run_.returncode == 0, stderr[-2000:]
+    assert "seed 5: unfinished output from an earlier run removed; redoing it" in stdout
+    assert verify_manifest(tmp_path / "seed_000005") == []
+    assert not list(tmp_path.glob(".seed_*"))  # partial folder and both lock files gone
+
+
 def test_killed_run_resumes(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "OCIO"}
     args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--frames", "12", "--seeds", "8", "9"]

@@ -4,6 +4,9 @@ and the commit that makes it complete. bpy-free.
     seed_NNNNNN/            a complete seed: our manifest.json lists every file in it
     .seed_NNNNNN.partial/   a seed being written; its first file is the marker PARTIAL_MARKER
     .seed_NNNNNN.lock       the seed's lock file (fcntl.flock), removed by the run that held it
+    .seed_NNNNNN.work.lock  held by the process making the seed and its worker process (on
+                            whichever node): a new attempt waits for it before it touches
+                            the partial folder
 
 Nothing here deletes a path that is not provably ours: a partial folder with our marker
 (and only while we hold the seed's lock), or a complete seed the user asked to replace."""
@@ -16,6 +19,7 @@ import fcntl
 import json
 import os
 import shutil
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +39,10 @@ def lock_file(out: Path, seed: int) -> Path:
     return out / f".seed_{seed:06d}.lock"
 
 
+def work_lock_file(out: Path, seed: int) -> Path:
+    return out / f".seed_{seed:06d}.work.lock"
+
+
 def replaced_folder(out: Path, seed: int) -> Path:
     return out / f".seed_{seed:06d}.replaced"
 
@@ -51,7 +59,23 @@ class SeedLock:
     def try_acquire(cls, out: Path, seed: int) -> "SeedLock | None":
         """The lock, or None while another process holds it. OSError if the lock file's name
         is taken by something else (a folder, a symlink)."""
-        path = lock_file(out, seed)
+        return cls._try(lock_file(out, seed))
+
+    @classmethod
+    def wait_for_work(cls, out: Path, seed: int, seconds: float) -> "SeedLock | None":
+        """The seed's work lock, waiting up to ``seconds`` while a process of an earlier
+        attempt still holds it (a worker that outlives its run: Ray kills a task's processes
+        1-3 s after its driver is killed with SIGKILL, and the driver's own lock is released at
+        once); None if it is still held then. OSError as :meth:`try_acquire`."""
+        deadline = time.monotonic() + seconds
+        while True:
+            lock = cls._try(work_lock_file(out, seed))
+            if lock is not None or time.monotonic() >= deadline:
+                return lock
+            time.sleep(0.05)
+
+    @classmethod
+    def _try(cls, path: Path) -> "SeedLock | None":
         while True:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
             try:

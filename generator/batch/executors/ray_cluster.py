@@ -207,14 +207,23 @@ def _failure(exc: Exception, attempts: int) -> str:
 
 
 def _drop_partial(out: Path, seed: int) -> None:
-    """Remove the partial folder a cancelled task made (ours: marked), trying for a while in
-    case its worker process was still finishing a file."""
-    for _ in range(25):
-        try:
-            folders.drop_partial(out, seed)
-            return
-        except OSError:
-            time.sleep(0.2)
+    """Remove the partial folder a cancelled task made (ours: marked) once its worker process
+    is gone (it holds the seed's work lock until it is: folders.SeedLock.wait_for_work),
+    trying for a while in case it could not be told."""
+    try:
+        work = folders.SeedLock.wait_for_work(out, seed, 30.0)
+    except OSError:
+        work = None
+    try:
+        for _ in range(25):
+            try:
+                folders.drop_partial(out, seed)
+                return
+            except OSError:
+                time.sleep(0.2)
+    finally:
+        if work is not None:
+            work.release()
 
 
 def _connect(address: str | None) -> str:

@@ -24,6 +24,8 @@ from .. import folders
 # the pid of the process that starts a worker, so that the worker can tell it was orphaned
 # before it could ask to die with it (generator/batch/worker.py)
 PARENT_ENV = "BUILDEE_WORKER_PARENT"
+# seconds an attempt waits for the worker of an earlier one to be gone (folders.SeedLock.wait_for_work)
+WORK_LOCK_WAIT = 60.0
 
 ROOT = Path(__file__).resolve().parents[3]  # the worker runs with the repository as its working folder
 
@@ -70,6 +72,29 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
     {"event": "frame"} (one more frame written). ``started`` receives the worker process
     (to cancel it: kill its process group)."""
     out, t0 = Path(job.out).absolute(), time.perf_counter()  # the worker runs in the repository's folder
+    work_path = folders.work_lock_file(out, job.seed)
+    try:
+        work = folders.SeedLock.wait_for_work(out, job.seed, WORK_LOCK_WAIT)
+    except OSError as exc:
+        return Outcome(job.seed, "conflict", f"cannot lock {work_path}: {exc.strerror or exc}")
+    if work is None:
+        return Outcome(job.seed, "conflict", f"a process of an earlier run (pid {_holder(work_path)}) still holds "
+                       f"{work_path} after {WORK_LOCK_WAIT:g} s; run again once it has stopped")
+    try:
+        return _produce(job, emit, started, out, t0, work)
+    finally:
+        work.release()
+
+
+def _holder(path: Path) -> str:
+    try:
+        return path.read_text()[:20].strip() or "unknown"
+    except (OSError, UnicodeDecodeError):
+        return "unknown"
+
+
+def _produce(job: SeedJob, emit: Emit, started, out: Path, t0: float, work: folders.SeedLock) -> Outcome:
+    """produce_seed holding the seed's work lock, which the worker process shares."""
     try:
         folder, note = folders.start_partial(out, job.seed)
     except OSError as exc:
@@ -80,7 +105,7 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
     proc = subprocess.Popen(
         [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, cwd=ROOT,
-        pass_fds=() if job.lock_fd is None else (job.lock_fd,))
+        pass_fds=(work.fd,) if job.lock_fd is None else (work.fd, job.lock_fd))
     if started:
         started(proc)
     stderr: list[str] = []
