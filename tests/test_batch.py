@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -150,32 +151,95 @@ def test_failed_seed_is_reported_and_others_finish(tmp_path):
     assert r2.returncode == 0 and "seed 6: already complete" in r2.stdout and "seed 5" not in r2.stdout
 
 
+HOLD_WORK_LOCK = """
+import subprocess, sys
+from pathlib import Path
+from generator.batch import folders
+lock = folders.SeedLock.wait_for_work(Path(sys.argv[1]), int(sys.argv[2]), 0)
+child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"], pass_fds=(lock.fd,),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+print(child.pid, flush=True)  # and exit at once, without releasing: the child holds the lock on
+"""
+
+
 def test_an_attempt_waits_for_the_worker_of_an_earlier_one_before_touching_the_seed(tmp_path):
-    """A process of an earlier attempt that still holds the seed's work lock (as a Ray task's
-    worker does for 1-3 s after its driver is killed with SIGKILL, when the driver's own lock
-    is already released) keeps a new run away from the seed's partial folder until it has
-    exited; then the new run redoes the seed (docs/scale.md)."""
+    """The worker of an earlier attempt that outlives the process that started it, holding the
+    seed's work lock it inherited (as a Ray task's worker does for 1-3 s after its driver is
+    killed with SIGKILL, when the driver's own lock is already released), keeps a new run away
+    from the seed's partial folder until it has exited; then the new run redoes the seed
+    (docs/scale.md)."""
     from exporters.manifest import PARTIAL_MARKER
     from generator.batch import folders
 
     env = {k: v for k, v in os.environ.items() if k != "OCIO"}
     partial, _ = folders.start_partial(tmp_path, 5)  # the earlier attempt's partial folder
     marker = (partial / PARTIAL_MARKER).read_text()
-    holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from pathlib import Path; from generator.batch import folders\n"
-         "lock = folders.SeedLock.wait_for_work(Path(sys.argv[1]), 5, 0)\nprint(lock is not None, flush=True)\n"
-         "time.sleep(4)", str(tmp_path)], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
-    assert holder.stdout.readline().strip() == "True"
-    run_ = subprocess.Popen([sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "5"],
-                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    while holder.poll() is None:  # the new run leaves the earlier attempt's folder alone meanwhile
-        assert (partial / PARTIAL_MARKER).read_text() == marker
-        time.sleep(0.02)
+    held = subprocess.run([sys.executable, "-c", HOLD_WORK_LOCK, str(tmp_path), "5"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, check=True)
+    orphan = int(held.stdout)
+    try:
+        run_ = subprocess.Popen([sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--seeds", "5"],
+                                cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.time() + 60
+        while not folders.lock_file(tmp_path, 5).exists():  # the new run has claimed the seed
+            assert time.time() < deadline and run_.poll() is None, "the new run never claimed the seed"
+            time.sleep(0.02)
+        until = time.time() + 3.0  # it is now waiting for the work lock: the old folder stays as it was
+        while time.time() < until:
+            assert (partial / PARTIAL_MARKER).read_text() == marker and run_.poll() is None
+            time.sleep(0.02)
+    finally:
+        os.kill(orphan, signal.SIGKILL)
     stdout, stderr = run_.communicate(timeout=300)
     assert run_.returncode == 0, stderr[-2000:]
     assert "seed 5: unfinished output from an earlier run removed; redoing it" in stdout
     assert verify_manifest(tmp_path / "seed_000005") == []
     assert not list(tmp_path.glob(".seed_*"))  # partial folder and both lock files gone
+
+
+PRODUCE_AND_WAIT_FOR_SIGTERM = """
+import json, signal, sys, time
+from generator.batch.config import RunConfig
+from generator.batch.executors.seed import SeedJob, produce_seed
+signal.signal(signal.SIGTERM, lambda *a: sys.exit(143))  # what a Ray worker process does
+config = RunConfig("small", resolution=(48, 32), frames=40, points_density=0.3, scoring_density=5).to_dict()
+try:
+    produce_seed(SeedJob(6, sys.argv[1], config), lambda e: print(json.dumps(e), flush=True))
+except SystemExit:  # a process that lives on after its task ended: its worker must not
+    print("ended", flush=True)
+    time.sleep(60)
+"""
+
+
+def test_a_seed_ended_by_sigterm_leaves_no_worker_behind_its_work_lock(tmp_path):
+    """produce_seed stopped by an exception (Ray turns SIGTERM into SystemExit) kills its worker
+    process before it lets go of the seed's work lock, so no worker writes on unprotected."""
+    env = {k: v for k, v in os.environ.items() if k != "OCIO"}
+    proc = subprocess.Popen([sys.executable, "-c", PRODUCE_AND_WAIT_FOR_SIGTERM, str(tmp_path)], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert '"start"' in proc.stdout.readline() or '"start"' in proc.stdout.readline()  # the worker is under way
+    workers = [int(d.name) for d in Path("/proc").iterdir() if d.name.isdigit() and _is_worker_of(d, tmp_path)]
+    assert len(workers) == 1
+    proc.send_signal(signal.SIGTERM)
+    try:
+        while (line := proc.stdout.readline()) and line.strip() != "ended":
+            pass
+        assert line.strip() == "ended", proc.stderr.read()[-2000:]
+        # the process lives on, its work lock released: its worker must be gone already
+        assert not (tmp_path / ".seed_000006.work.lock").exists()
+        stat = Path(f"/proc/{workers[0]}/stat")
+        assert not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z", "the worker outlived its lock"
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def _is_worker_of(proc_dir: Path, out: Path) -> bool:
+    try:
+        argv = (proc_dir / "cmdline").read_bytes().decode(errors="replace").split("\0")
+    except OSError:
+        return False
+    return argv[1:3] == ["-m", "generator.batch.worker"] and len(argv) > 5 and argv[5].startswith(f"{out}/")
 
 
 def test_killed_run_resumes(tmp_path):

@@ -19,6 +19,7 @@ import fcntl
 import json
 import os
 import shutil
+import socket
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,23 +60,24 @@ class SeedLock:
     def try_acquire(cls, out: Path, seed: int) -> "SeedLock | None":
         """The lock, or None while another process holds it. OSError if the lock file's name
         is taken by something else (a folder, a symlink)."""
-        return cls._try(lock_file(out, seed))
+        return cls._try(lock_file(out, seed), f"{os.getpid()}")
 
     @classmethod
     def wait_for_work(cls, out: Path, seed: int, seconds: float) -> "SeedLock | None":
         """The seed's work lock, waiting up to ``seconds`` while a process of an earlier
         attempt still holds it (a worker that outlives its run: Ray kills a task's processes
         1-3 s after its driver is killed with SIGKILL, and the driver's own lock is released at
-        once); None if it is still held then. OSError as :meth:`try_acquire`."""
+        once); None if it is still held then. The file names its holder: 'host H pid P' (the
+        holder may be on another node). OSError as :meth:`try_acquire`."""
         deadline = time.monotonic() + seconds
         while True:
-            lock = cls._try(work_lock_file(out, seed))
+            lock = cls._try(work_lock_file(out, seed), f"host {socket.gethostname()} pid {os.getpid()}")
             if lock is not None or time.monotonic() >= deadline:
                 return lock
             time.sleep(0.05)
 
     @classmethod
-    def _try(cls, path: Path) -> "SeedLock | None":
+    def _try(cls, path: Path, holder: str) -> "SeedLock | None":
         while True:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
             try:
@@ -89,7 +91,7 @@ class SeedLock:
                 same = False
             if same:  # not a file its previous holder unlinked after we opened it
                 os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
+                os.write(fd, f"{holder}\n".encode())
                 return cls(path, fd)
             os.close(fd)
 
@@ -172,6 +174,24 @@ def start_partial(out: Path, seed: int) -> tuple[Path, str]:
     partial.mkdir()
     (partial / PARTIAL_MARKER).write_text(json.dumps({"seed": seed, "pid": os.getpid()}))
     return partial, note
+
+
+def drop_idle_partial(out: Path, seed: int, wait: float = 0.0) -> None:
+    """Hold the seed's lock. Remove an earlier attempt's partial folder of ``seed`` and its work
+    lock file once no process holds that lock (waiting up to ``wait`` seconds; else leave
+    both: a later run waits for it); anything not ours is left alone."""
+    try:
+        work = SeedLock.wait_for_work(out, seed, wait)
+    except OSError:
+        return
+    if work is None:
+        return
+    try:
+        drop_partial(out, seed)
+    except OSError:
+        pass
+    finally:
+        work.release()
 
 
 def drop_partial(out: Path, seed: int) -> bool:

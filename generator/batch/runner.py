@@ -91,10 +91,7 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
     if d.action == "run":
         return lock, None, d
     if d.action == "skip":
-        try:
-            folders.drop_partial(out, seed)  # debris of an earlier run, if ours
-        except OSError:
-            pass
+        folders.drop_idle_partial(out, seed)  # debris of an earlier run, if ours and its worker is gone
     lock.release()
     return None, SeedResult(seed, "skipped" if d.action == "skip" else d.action, d.message, d.summary or {}), None
 

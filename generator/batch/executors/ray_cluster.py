@@ -188,7 +188,7 @@ class RayExecutor(Executor):
             except Exception:
                 pass
         for job in self.refs.values():
-            _drop_partial(Path(job.out), job.seed)
+            folders.drop_idle_partial(Path(job.out), job.seed, wait=5.0)  # its worker dies with its task
         self.refs.clear()
 
     def close(self) -> None:
@@ -204,26 +204,6 @@ def _failure(exc: Exception, attempts: int) -> str:
     if isinstance(exc, ray.exceptions.TaskCancelledError):
         return "cancelled"
     return f"{exc.__class__.__name__}: {first}"
-
-
-def _drop_partial(out: Path, seed: int) -> None:
-    """Remove the partial folder a cancelled task made (ours: marked) once its worker process
-    is gone (it holds the seed's work lock until it is: folders.SeedLock.wait_for_work),
-    trying for a while in case it could not be told."""
-    try:
-        work = folders.SeedLock.wait_for_work(out, seed, 30.0)
-    except OSError:
-        work = None
-    try:
-        for _ in range(25):
-            try:
-                folders.drop_partial(out, seed)
-                return
-            except OSError:
-                time.sleep(0.2)
-    finally:
-        if work is not None:
-            work.release()
 
 
 def _connect(address: str | None) -> str:

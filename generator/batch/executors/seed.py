@@ -25,7 +25,7 @@ from .. import folders
 # before it could ask to die with it (generator/batch/worker.py)
 PARENT_ENV = "BUILDEE_WORKER_PARENT"
 # seconds an attempt waits for the worker of an earlier one to be gone (folders.SeedLock.wait_for_work)
-WORK_LOCK_WAIT = 60.0
+WORK_LOCK_WAIT = 120.0  # more than NFSv4's 90 s lease, after which a dead node's locks are released
 
 ROOT = Path(__file__).resolve().parents[3]  # the worker runs with the repository as its working folder
 
@@ -47,8 +47,9 @@ class SeedJob:
 
 @dataclass
 class Outcome:
-    """How one attempt at a seed ended. ``status``: 'done' (committed), 'failed' or
-    'conflict' (its partial folder's name is taken by something not ours); ``lost``: the
+    """How one attempt at a seed ended. ``status``: 'done' (committed), 'failed' (also when
+    a process of an earlier attempt still holds the seed's work lock) or 'conflict' (its
+    partial folder's or work lock's name is taken by something not ours); ``lost``: the
     worker process was killed by a signal (a crash, the OOM killer, a kill), so another
     attempt may succeed; ``note``: what was found and removed before starting."""
 
@@ -71,24 +72,26 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
     earlier run was removed), {"event": "start", "frames"} (frames to render) and
     {"event": "frame"} (one more frame written). ``started`` receives the worker process
     (to cancel it: kill its process group)."""
-    out, t0 = Path(job.out).absolute(), time.perf_counter()  # the worker runs in the repository's folder
+    out = Path(job.out).absolute()  # the worker runs in the repository's folder
     work_path = folders.work_lock_file(out, job.seed)
     try:
         work = folders.SeedLock.wait_for_work(out, job.seed, WORK_LOCK_WAIT)
     except OSError as exc:
         return Outcome(job.seed, "conflict", f"cannot lock {work_path}: {exc.strerror or exc}")
     if work is None:
-        return Outcome(job.seed, "conflict", f"a process of an earlier run (pid {_holder(work_path)}) still holds "
-                       f"{work_path} after {WORK_LOCK_WAIT:g} s; run again once it has stopped")
+        return Outcome(job.seed, "failed", f"a process of an earlier attempt ({_holder(work_path)}) still holds "
+                       f"{work_path} after {WORK_LOCK_WAIT:g} s; its partial folder is left alone: run again once "
+                       "that process has stopped (on a network file system, once a dead node's lock has expired)")
     try:
-        return _produce(job, emit, started, out, t0, work)
+        return _produce(job, emit, started, out, time.perf_counter(), work)
     finally:
         work.release()
 
 
 def _holder(path: Path) -> str:
+    """'host H pid P' as the work lock's holder wrote it."""
     try:
-        return path.read_text()[:20].strip() or "unknown"
+        return path.read_text()[:200].strip() or "unknown"
     except (OSError, UnicodeDecodeError):
         return "unknown"
 
@@ -106,8 +109,33 @@ def _produce(job: SeedJob, emit: Emit, started, out: Path, t0: float, work: fold
         [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, cwd=ROOT,
         pass_fds=(work.fd,) if job.lock_fd is None else (work.fd, job.lock_fd))
-    if started:
-        started(proc)
+    try:
+        if started:
+            started(proc)
+        code, errors, done, stderr = _follow(proc, emit)
+    finally:  # however this ends (an exception, Ray's SIGTERM): no worker outlives the work lock
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    seconds = time.perf_counter() - t0
+    if code == 0 and done is not None:
+        try:
+            problem = folders.commit(out, job.seed, job.config, job.replace)
+        except OSError as exc:
+            problem = f"{exc.filename or folder}: {exc.strerror}"
+        if not problem:
+            left = folders.drop_replaced(out, job.seed) if job.replace else ""
+            if left:  # the new seed is committed all the same
+                emit({"event": "note", "message": left})
+            return Outcome(job.seed, "done", "", done, seconds, note=note)
+        return Outcome(job.seed, "failed", f"not committed: {problem}", {}, seconds, note=note)
+    return Outcome(job.seed, "failed", _cause(code, errors, stderr, folder), {}, seconds, lost=code < 0,
+                   note=note)
+
+
+def _follow(proc: subprocess.Popen, emit: Emit) -> tuple[int, list[str], dict | None, str]:
+    """Forward the worker's progress events until it exits: (exit code, error messages, its
+    summary if it finished, its stderr)."""
     stderr: list[str] = []
     reader = threading.Thread(target=lambda: stderr.append(proc.stderr.read()), daemon=True)
     reader.start()
@@ -126,20 +154,7 @@ def _produce(job: SeedJob, emit: Emit, started, out: Path, t0: float, work: fold
             done = event["summary"]
     code = proc.wait()
     reader.join()
-    seconds = time.perf_counter() - t0
-    if code == 0 and done is not None:
-        try:
-            problem = folders.commit(out, job.seed, job.config, job.replace)
-        except OSError as exc:
-            problem = f"{exc.filename or folder}: {exc.strerror}"
-        if not problem:
-            left = folders.drop_replaced(out, job.seed) if job.replace else ""
-            if left:  # the new seed is committed all the same
-                emit({"event": "note", "message": left})
-            return Outcome(job.seed, "done", "", done, seconds, note=note)
-        return Outcome(job.seed, "failed", f"not committed: {problem}", {}, seconds, note=note)
-    return Outcome(job.seed, "failed", _cause(code, errors, "".join(stderr), folder), {}, seconds, lost=code < 0,
-                   note=note)
+    return code, errors, done, "".join(stderr)
 
 
 def _cause(code: int, errors: list[str], stderr: str, folder: Path) -> str:
