@@ -18,6 +18,16 @@ TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--
         "--scoring-density", "5"]
 
 
+def cpu_flags() -> set[str]:
+    """The CPU's feature flags (/proc/cpuinfo), for tests that make this machine stand in for
+    other CPUs: a stand-in can only be a CPU with no more than this one has."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            return set(next(line for line in f if line.startswith("flags")).split(":")[1].split())
+    except (OSError, StopIteration):
+        return set()
+
+
 def run_generator(out, *args, env_extra=None, **kw) -> subprocess.CompletedProcess:
     """``python -m generator --out OUT <TINY> *args`` in a real process."""
     env = {k: v for k, v in os.environ.items() if k != "OCIO"} | (env_extra or {})

@@ -15,23 +15,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import cpu_flags
 
 from generator.geometry.boxes import Box3D
 from generator.geometry.camera import affine_inverse, matmul_exact, orthogonal_factor, orthonormalize, polar_factor
 from generator.scene.changes import rigid_fit
 
 ROOT = Path(__file__).resolve().parents[1]
-def _cpu_flags() -> set[str]:
-    try:
-        return set(next(line for line in open("/proc/cpuinfo") if line.startswith("flags")).split(":")[1].split())
-    except (OSError, StopIteration):
-        return set()
-
-
 # no FMA; AVX2 + FMA; AVX-512: the kernels this machine can run (a stand-in cannot be a CPU
 # with more than this one has); the x86-64 machines the README's commands are for run all three
 CORES = tuple(core for core, needs in (("Sandybridge", "avx"), ("Haswell", "fma"), ("SkylakeX", "avx512f"))
-              if needs in _cpu_flags())
+              if needs in cpu_flags())
 # the same three CPUs for numpy and the C library too
 NUMPY_OFF = {"Sandybridge": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR", "Haswell": "X86_V4 AVX512_ICL AVX512_SPR",
              "SkylakeX": ""}
