@@ -116,15 +116,16 @@ def orthogonal_factor(a: np.ndarray) -> np.ndarray:
         return u @ vt
 
 
-def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, float]:
-    """(cofactor matrix, det a) of a 3x3 matrix in a fixed order of IEEE operations; the
-    cofactors over the determinant are the inverse transpose."""
-    cof = np.empty((3, 3))
+def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(cofactor matrices, determinants) of 3x3 matrices (..., 3, 3) in a fixed order of IEEE
+    operations; the cofactors over the determinant are the inverse transpose."""
+    a = np.asarray(a, dtype=np.float64)
+    cof = np.empty(a.shape)
     for i in range(3):
         for j in range(3):
             i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
-            cof[i, j] = a[i1, j1] * a[i2, j2] - a[i1, j2] * a[i2, j1]
-    det = float((a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1]) + a[0, 2] * cof[0, 2])
+            cof[..., i, j] = a[..., i1, j1] * a[..., i2, j2] - a[..., i1, j2] * a[..., i2, j1]
+    det = (a[..., 0, 0] * cof[..., 0, 0] + a[..., 0, 1] * cof[..., 0, 1]) + a[..., 0, 2] * cof[..., 0, 2]
     return cof, det
 
 
@@ -273,14 +274,9 @@ def affine_inverse(m: np.ndarray) -> np.ndarray:
     (``np.linalg.inv`` hands the work to LAPACK, whose kernel depends on the CPU). Accurate to
     float64 round-off for the well-conditioned matrices of rigid and scaled objects."""
     m = np.asarray(m, dtype=np.float64)
-    a = [[m[..., i, j] for j in range(3)] for i in range(3)]
-    cof = [[a[(i + 1) % 3][(j + 1) % 3] * a[(i + 2) % 3][(j + 2) % 3]
-            - a[(i + 1) % 3][(j + 2) % 3] * a[(i + 2) % 3][(j + 1) % 3] for j in range(3)] for i in range(3)]
-    det = (a[0][0] * cof[0][0] + a[0][1] * cof[0][1]) + a[0][2] * cof[0][2]
+    cof, det = _cofactors_3x3(m[..., :3, :3])
     out = np.zeros(m.shape)
-    for i in range(3):
-        for j in range(3):
-            out[..., i, j] = cof[j][i] / det
+    out[..., :3, :3] = np.swapaxes(cof, -1, -2) / det[..., None, None]
     t = m[..., :3, 3]
     for i in range(3):
         out[..., i, 3] = -((out[..., i, 0] * t[..., 0] + out[..., i, 1] * t[..., 1]) + out[..., i, 2] * t[..., 2])
