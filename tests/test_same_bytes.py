@@ -19,6 +19,7 @@ from conftest import cpu_flags
 
 from generator.geometry.boxes import Box3D
 from generator.geometry.camera import affine_inverse, matmul_exact, orthogonal_factor, orthonormalize, polar_factor
+from generator.geometry.nearest_rotation import nearest_reflection, nearest_rotation
 from generator.scene.changes import rigid_fit
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -181,7 +182,7 @@ def _rotation(rng) -> np.ndarray:
 
 def test_polar_factor_is_the_svds_nearest_orthogonal_matrix_and_falls_back_where_it_must():
     """camera.polar_factor (Newton, BLAS-free) against LAPACK's U V^T, and the matrices it
-    refuses: the callers then take the SVD and still give what the SVD gave."""
+    refuses: the callers then take Horn's nearest rotation (or reflection)."""
     rng = np.random.default_rng(11)
     for k in range(60):
         a = _rotation(rng) @ np.diag(10.0 ** rng.uniform(-3, 3, 3)) @ _rotation(rng).T * (-1 if k % 3 == 0 else 1)
@@ -214,3 +215,73 @@ def test_rigid_fit_recovers_a_rigid_move_of_flat_and_solid_parts(thickness):
         r, t = _rotation(rng), rng.uniform(-50, 50, 3)
         fit, residual = rigid_fit(a, a @ r.T + t)
         assert residual < 1e-9 and np.abs(fit[:3, :3] - r).max() < 1e-8 and np.abs(fit[:3, 3] - t).max() < 1e-7
+
+
+def _svd_nearest(m: np.ndarray, det_sign: float) -> np.ndarray:
+    """LAPACK's answer: U diag(1, 1, d) V^T with d making the determinant ``det_sign``."""
+    u, _, vt = np.linalg.svd(m)
+    d = det_sign * np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def test_nearest_rotation_and_reflection_are_the_svds_answers():
+    """Horn's method with Jacobi rotations (generator/geometry/nearest_rotation.py) against
+    the SVD on full-rank, mirrored, badly conditioned and flat matrices (where the answer is
+    unique), and the largest trace(R^T M) where it is not (rank one, zero)."""
+    rng = np.random.default_rng(13)
+    for k in range(200):
+        s = 10.0 ** rng.uniform(-3, 3, 3)
+        if k % 4 == 1:
+            s[2] = 0.0  # a flat point set's cross-covariance
+        elif k % 4 == 2:
+            s[1] *= 1e-9  # worse conditioned than polar_factor accepts
+        m = _rotation(rng) @ np.diag(s) @ _rotation(rng).T * (-1 if k % 3 == 0 else 1) * 10.0 ** rng.uniform(-6, 6)
+        for det_sign, ours in ((1.0, nearest_rotation(m)), (-1.0, nearest_reflection(m))):
+            assert np.abs(ours.T @ ours - np.eye(3)).max() < 1e-14 and np.linalg.det(ours) * det_sign > 0
+            ref = _svd_nearest(m, det_sign)
+            gap = np.sort(s)  # the answer is unique unless two singular values tie at the bottom
+            if gap[1] > 1e-6 * gap[2]:
+                assert np.abs(ours - ref).max() < 1e-8, (k, det_sign)
+            assert np.sum(ours * m) >= np.sum(ref * m) - 1e-12 * np.abs(m).sum()
+    for m in (np.outer(rng.normal(size=3), rng.normal(size=3)), np.zeros((3, 3))):  # many answers: the best trace
+        r = nearest_rotation(m)
+        assert np.abs(r.T @ r - np.eye(3)).max() < 1e-14 and np.linalg.det(r) > 0
+        assert np.sum(r * m) >= np.sum(_svd_nearest(m, 1.0) * m) - 1e-12
+    assert np.array_equal(nearest_rotation(np.zeros((3, 3))), np.eye(3))
+    with pytest.raises(ValueError):
+        nearest_rotation(np.full((3, 3), np.inf))
+
+
+FALLBACK_PROBE = """
+import hashlib
+import numpy as np
+from generator.geometry.boxes import Box3D
+from generator.geometry.camera import orthogonal_factor, orthonormalize, rows_times
+from generator.scene.changes import rigid_fit
+
+rng = np.random.default_rng(5)
+ours, numpys = hashlib.sha256(), hashlib.sha256()
+for k in range(100):
+    q = rng.normal(size=(3, 3))
+    flat = rng.uniform(-3, 3, (40, 3)) * [1.0, 1.0, 0.0 if k % 2 else 1e-9]  # a sheet: singular cross-covariance
+    moved = rows_times(flat, orthonormalize(q).T) + rng.uniform(-50, 50, 3)
+    fit, residual = rigid_fit(flat, moved)
+    ours.update(fit.tobytes())
+    m = np.eye(4)
+    m[:3, :3] = q * [1.0, 0.0, 1.0]  # an object scaled to nothing along one axis
+    ours.update(Box3D(np.ones(3), np.ones(3), np.eye(3)).transformed(m).rotation.tobytes())
+    ours.update(orthogonal_factor(q * [1.0, 1.0, 0.0]).tobytes())
+    ours.update(orthonormalize(-np.abs(q) - np.eye(3)).tobytes())  # a mirror
+    numpys.update(np.linalg.svd(q * [1.0, 1.0, 0.0])[0].tobytes())  # the control: LAPACK's SVD
+print(ours.hexdigest(), numpys.hexdigest())
+"""
+
+
+def test_the_rotation_fallbacks_do_not_depend_on_the_cpu():
+    """Where polar_factor refuses a matrix (flat parts' rigid fits, boxes of objects scaled to
+    nothing, mirrored matrices), the answer is still the same bits under the stand-in CPUs;
+    LAPACK's SVD, which these used to take, is not."""
+    assert len(CORES) >= 2, f"this CPU stands in for only {CORES}: an x86-64 CPU with AVX2 and FMA is needed"
+    digests = [_digests(core, FALLBACK_PROBE) for core in CORES]
+    assert len({ours for ours, _ in digests}) == 1, "a fallback's rotation changes with the CPU's kernels"
+    assert len({numpys for _, numpys in digests}) > 1, "the stand-ins did not change LAPACK's SVD"

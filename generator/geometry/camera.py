@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import portable_math
+from .nearest_rotation import nearest_reflection, nearest_rotation
 
 # Blender camera frame (x right, y up, z backward) -> OpenCV camera frame.
 CV_FROM_BLENDER_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -94,26 +95,32 @@ def intrinsics_from_blender(
 def orthonormalize(rotation: np.ndarray) -> np.ndarray:
     """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale. For a
     rotation times a well-conditioned scale (every matrix of a Blender object without a
-    mirror) it is :func:`polar_factor`, the same bits on every CPU; a mirror, a singular or a
-    badly conditioned matrix goes through LAPACK's SVD (and a mirror gives the rotation
-    nearest to it, not a reflection)."""
-    q = orthogonal_factor(rotation)
-    if _cofactors_3x3(q)[1] > 0:
-        return q
-    u, _, vt = np.linalg.svd(np.asarray(rotation, dtype=np.float64))
-    u[:, -1] *= -1
-    return u @ vt
+    mirror) it is :func:`polar_factor`; a mirror, a singular or a badly conditioned matrix
+    goes to :func:`nearest_rotation.nearest_rotation` (a mirror gives the rotation nearest to
+    it, not a reflection). Both give the same bits on every CPU."""
+    try:
+        q = polar_factor(rotation)
+        if _cofactors_3x3(q)[1] > 0:
+            return q
+    except ValueError:
+        pass
+    return nearest_rotation(rotation)
 
 
 def orthogonal_factor(a: np.ndarray) -> np.ndarray:
-    """The orthogonal matrix nearest to a 3x3 matrix (U V^T of its SVD): :func:`polar_factor`,
-    the same bits on every CPU, where it applies; LAPACK's SVD for the singular or badly
-    conditioned matrices it refuses."""
+    """The orthogonal matrix nearest to a 3x3 matrix (U V^T of its SVD), the same bits on
+    every CPU: :func:`polar_factor` where it applies; for the singular or badly conditioned
+    matrices it refuses, the nearest rotation (determinant >= 0) or reflection (< 0) by
+    Horn's method (:mod:`.nearest_rotation`). A singular matrix has several nearest
+    orthogonal matrices: the rotation among them is taken."""
     try:
         return polar_factor(a)
     except ValueError:
-        u, _, vt = np.linalg.svd(np.asarray(a, dtype=np.float64))
-        return u @ vt
+        pass
+    a = np.asarray(a, dtype=np.float64)
+    if a.shape == (3, 3) and np.isfinite(a).all() and _cofactors_3x3(a)[1] < 0:
+        return nearest_reflection(a)
+    return nearest_rotation(a)
 
 
 def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

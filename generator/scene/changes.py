@@ -23,6 +23,7 @@ import numpy as np
 from exporters.changes import STATUS  # codes 0..4 in changes.h5
 
 from ..geometry.camera import apply_affine, polar_factor, rows_times
+from ..geometry.nearest_rotation import nearest_rotation
 
 ABSENT = -1  # the status of an object in neither stage
 POINT_TOLERANCE = 0.01  # metres: a point is unchanged if the other stage's surface is within this
@@ -40,9 +41,9 @@ def union_table(stage_names: list[list[str]]) -> tuple[list[str], list[np.ndarra
 def rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     """4x4 rigid transform T (rotation, translation) minimising |T a - b| over matched rows,
     and the largest residual in metres (Kabsch: the rotation is the polar factor of the
-    cross-covariance's transpose). Without BLAS or LAPACK, so the same bits on every CPU
-    (docs/guarantees.md), except for point sets whose cross-covariance is singular, badly
-    conditioned or mirrored (flat or nearly flat parts), which go through LAPACK's SVD."""
+    cross-covariance's transpose; where that is singular, badly conditioned or mirrored, as
+    for flat or nearly flat parts, the rotation nearest to it by Horn's method). Without BLAS
+    or LAPACK, so the same bits on every CPU (docs/guarantees.md)."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     ca, cb = a.mean(axis=0), b.mean(axis=0)
     da, db = a - ca, b - cb
@@ -53,10 +54,8 @@ def rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
             r = polar_factor(h.T)
         except ValueError:  # singular: a flat or degenerate set of points
             pass
-    if r is None or np.sum(np.cross(r[:, 0], r[:, 1]) * r[:, 2]) < 0:  # singular or a mirror: SVD with the sign fix
-        u, _, vt = np.linalg.svd(h)
-        d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-        r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    if r is None or np.sum(np.cross(r[:, 0], r[:, 1]) * r[:, 2]) < 0:  # singular or a mirror: Horn's method
+        r = nearest_rotation(h.T)
     t = np.eye(4)
     t[:3, :3], t[:3, 3] = r, cb - rows_times(ca, r.T)
     residual = float(np.max(np.linalg.norm(apply_affine(t, a) - b, axis=1))) if len(a) else 0.0
