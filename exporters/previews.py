@@ -72,7 +72,7 @@ def flow_wheel(size: int = 48) -> np.ndarray:
     c = (np.arange(size) + 0.5 - size / 2) / (size / 2)
     x, y = np.meshgrid(c, c)
     rgb = colorize_flow(np.stack([x, y], -1), 1.0)
-    rgb[np.hypot(x, y) > 1] = 255
+    rgb[portable_math.hypot(x, y) > 1] = 255
     return rgb
 
 
@@ -95,7 +95,7 @@ def _scales(frames: list[dict], names: list[str]) -> dict[str, float]:
             finite = np.concatenate([f[n][np.isfinite(f[n])] for f in frames])
             out[n] = float(np.percentile(finite, 98)) if len(finite) else 1.0
         elif kind == "flow":
-            mags = np.concatenate([np.hypot(f[n][..., 0], f[n][..., 1]).ravel() for f in frames])
+            mags = np.concatenate([portable_math.hypot(f[n][..., 0], f[n][..., 1]).ravel() for f in frames])
             mags = mags[np.isfinite(mags)]
             out[n] = max(float(np.percentile(mags, 98)), 1e-3) if len(mags) else 1.0
     return out

@@ -103,7 +103,7 @@ class PaperAPI:
         the new pose is ``world_from_camera @ camera_from_next_camera``. Returns True (and
         does not move) if the straight move collides."""
         step = cam_model.validate_rigid(camera_from_next_camera)
-        return self.set_world_from_camera(self.get_world_from_camera() @ step)
+        return self.set_world_from_camera(cam_model.matmul_exact(self.get_world_from_camera(), step))
 
     def draw_point_cloud_image(self, visible: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8: ``point_cloud_colors`` of the ``visible`` points at their pixels,

@@ -42,9 +42,9 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
     check_integer("attempts", attempts, 1, checks.MAX_ATTEMPTS)
     length = speed * (frames - 1) / fps
     spacing = length / waypoints * 0.5  # consecutive waypoints at least this far apart
-    if spacing >= float(np.linalg.norm(hi - lo)):
+    if spacing >= float(portable_math.vector_norm(hi - lo)):
         raise TrajectoryError(f"a fly-through of {length:.0f} m ({frames} frames at {speed:g} m/s) needs waypoints "
-                              f"{spacing:.0f} m apart, more than the {np.linalg.norm(hi - lo):.0f} m diagonal of its "
+                              f"{spacing:.0f} m apart, more than the {portable_math.vector_norm(hi - lo):.0f} m diagonal of its "
                               "box: use fewer frames")
     pitch = math.radians(pitch_deg)
     for _ in range(attempts):

@@ -45,15 +45,15 @@ def find_gate(fence_runs) -> Gate:
                 continue
             e = (b1 - b0) / portable_math.vector_norm(b1 - b0)
             gap = b0 - a1
-            parallel = abs(d[0] * e[1] - d[1] * e[0]) < 1e-9 and float(d @ e) > 0
+            parallel = abs(d[0] * e[1] - d[1] * e[0]) < 1e-9 and d[0] * e[0] + d[1] * e[1] > 0
             on_line = abs(d[0] * (b0 - a0)[1] - d[1] * (b0 - a0)[0]) < 1e-6
-            if parallel and on_line and float(gap @ d) > 0 and (best is None or portable_math.vector_norm(gap) > best[0]):
+            if parallel and on_line and gap[0] * d[0] + gap[1] * d[1] > 0 and (best is None or portable_math.vector_norm(gap) > best[0]):
                 best = (portable_math.vector_norm(gap), (a1 + b0) / 2, d)
     if best is None:
         raise ValueError("the site's fence has no gap between two runs on one line, so no gate to start from")
     width, mid, d = best
     inward = np.array([-d[1], d[0]])
-    if float(inward @ (centre - mid)) < 0:
+    if inward[0] * (centre - mid)[0] + inward[1] * (centre - mid)[1] < 0:  # dot products without BLAS
         inward = -inward
     return Gate(mid, inward, width)
 

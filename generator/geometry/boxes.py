@@ -39,11 +39,11 @@ class Box3D:
         """(8, 3) corners; corner k lies at -size/2 or +size/2 along the box's x, y, z axes
         as bits 2, 1, 0 of k are 0 or 1."""
         signs = np.array([[(k >> 2) & 1, (k >> 1) & 1, k & 1] for k in range(8)], float) * 2 - 1
-        return self.centre + (signs * (self.size / 2)) @ self.rotation.T
+        return self.centre + rows_times(signs * (self.size / 2), self.rotation.T)
 
     def contains(self, points: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
         """(n,) bool: the points lie in the box, within ``tolerance`` metres."""
-        local = (np.asarray(points, float) - self.centre) @ self.rotation
+        local = rows_times(np.asarray(points, float) - self.centre, self.rotation)
         return np.all(np.abs(local) <= self.size / 2 + tolerance, axis=1)
 
     def transformed(self, matrix: np.ndarray) -> "Box3D":
@@ -273,7 +273,7 @@ def _covered_corners(pc: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.n
     straddling both view planes through a corner (``lo``/``hi``: per-triangle minimum and
     maximum of the plane values) can meet its ray."""
     corners = np.array([[0.0, 0.0], [width, 0.0], [0.0, height], [width, height]])
-    kinv = np.linalg.inv(np.asarray(K, float))
+    K = np.asarray(K, float)
     out = []
     for corner, (i, j) in zip(corners, ((0, 2), (1, 2), (0, 3), (1, 3))):
         sel = (lo[:, i] <= 0) & (hi[:, i] >= 0) & (lo[:, j] <= 0) & (hi[:, j] >= 0) & (hi[:, 4] >= 0)
@@ -282,7 +282,8 @@ def _covered_corners(pc: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.n
         f = faces[sel]
         a, b, c = pc[f[:, 0]], pc[f[:, 1]], pc[f[:, 2]]
         e1, e2 = b - a, c - a
-        d = kinv @ np.array([corner[0], corner[1], 1.0])
+        y = (corner[1] - K[1, 2]) / K[1, 1]  # K^-1 (u, v, 1) by back-substitution: no LAPACK
+        d = np.array([(corner[0] - K[0, 1] * y - K[0, 2]) / K[0, 0], y, 1.0])
         # Moller-Trumbore from the camera centre (origin of the camera frame)
         p = np.cross(d, e2)
         det = np.einsum("ij,ij->i", e1, p)
@@ -291,7 +292,7 @@ def _covered_corners(pc: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.n
         s = -a
         u = np.einsum("ij,ij->i", s, p) * inv
         q = np.cross(s, e1)
-        v = (q @ d) * inv
+        v = np.einsum("ij,j->i", q, d) * inv
         t = np.einsum("ij,ij->i", e2, q) * inv
         if np.any(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t * d[2] >= near)):
             out.append(corner)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .portable_math import vector_norm
 from .raycast import SceneGeometry
 
 
@@ -44,7 +45,7 @@ def segment_is_free(
     until they are shorter than ``tolerance``.
     """
     a, b = checked_position(start, "start"), checked_position(end, "end")
-    length = float(np.linalg.norm(b - a))
+    length = float(vector_norm(b - a))  # not np.linalg.norm: BLAS, whose rounding depends on the CPU
     t0, t1 = 0.0, 1.0
     if length > _LONG:
         # far from every part's bounds (grown by the radius) the sphere touches nothing: test

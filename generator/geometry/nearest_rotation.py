@@ -97,8 +97,8 @@ def nearest_rotation(m: np.ndarray) -> np.ndarray:
     peak = float(np.abs(m).max())
     if peak == 0.0:
         return np.eye(3)
-    # a power of two keeps the bits of the scaled entries and keeps the squares in range
-    m = m * (2.0 ** -math.frexp(peak)[1])
+    # by a power of two: the entries keep their bits and their squares stay in range
+    m = np.ldexp(m, -math.frexp(peak)[1])
     return quaternion_matrix(top_eigenvector_4(_horn_matrix(m.tolist())))
 
 

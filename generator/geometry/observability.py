@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .portable_math import vector_norm
 from .raycast import SceneGeometry
 from .visibility import ViewLimits, visible_points
 from .point_block_kernels import omni_rays
@@ -39,7 +40,7 @@ def _cube_rotations() -> np.ndarray:
     for forward in np.vstack([np.eye(3), -np.eye(3)]):
         helper = np.array([0.0, 0.0, 1.0]) if abs(forward[2]) < 0.5 else np.array([1.0, 0.0, 0.0])
         right = np.cross(forward, helper)
-        right /= np.linalg.norm(right)
+        right /= vector_norm(right)
         down = np.cross(forward, right)
         out.append(np.stack([right, down, forward], axis=1))
     return np.array(out)

@@ -57,7 +57,8 @@ def closed_and_orientation(vertices: np.ndarray, faces: np.ndarray) -> tuple[boo
     a, b, c = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
     volume = float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) / 6.0
     scale = float(np.abs(v).max()) if len(v) else 0.0
-    if abs(volume) <= 1e-9 * max(scale, 1e-9) ** 3:
+    s = max(scale, 1e-9)
+    if abs(volume) <= 1e-9 * (s * s * s):
         return False, 1
     return True, 1 if volume > 0 else -1
 

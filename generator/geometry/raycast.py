@@ -10,7 +10,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .camera import rows_times
 from .parts import MeshPart
+from .portable_math import vector_norm
 from .structure import Structure, tensor
 
 # A point counts as visible if nothing is hit closer than ``d - tol`` along the segment
@@ -99,7 +101,9 @@ class SceneGeometry:
                     continue  # no vertices
                 m = self.parts[i].matrix
                 # the box of the transformed box: centre moved, half extents through |R|
-                centre, half = m[:3, :3] @ ((lo + hi) / 2) + m[:3, 3], np.abs(m[:3, :3]) @ ((hi - lo) / 2)
+                # (R v as rows_times(v, R^T): BLAS-free, the same bits on every CPU)
+                centre = rows_times((lo + hi) / 2, m[:3, :3].T) + m[:3, 3]
+                half = rows_times((hi - lo) / 2, np.abs(m[:3, :3]).T)
                 out[i] = [centre - half, centre + half]
             self._bounds, self._bounds_version = out, self.version
         return self._bounds.copy()
@@ -164,7 +168,7 @@ class SceneGeometry:
         for d in directions:
             rays = np.empty((n, 6), dtype=np.float32)
             rays[:, :3] = points
-            rays[:, 3:] = d / np.linalg.norm(d)
+            rays[:, 3:] = d / vector_norm(d)
             t_rays = tensor(rays)
             count = np.zeros(n, dtype=np.int64)
             for scene in scenes:
