@@ -25,7 +25,7 @@ def colorize_depth(depth: np.ndarray, far: float | None = None) -> np.ndarray:
     if not finite.any():
         return np.zeros(depth.shape + (3,), np.uint8)
     far = far or float(np.percentile(depth[finite], 98)) or 1.0
-    s = np.clip(np.where(finite, depth, far) / far, 0, 1) ** 0.5 * (len(_RAMP) - 1)
+    s = np.sqrt(np.clip(np.where(finite, depth, far) / far, 0, 1)) * (len(_RAMP) - 1)
     k = np.minimum(s.astype(np.int64), len(_RAMP) - 2)
     t = (s - k)[..., None]
     rgb = _RAMP[k] * (1 - t) + _RAMP[k + 1] * t

@@ -15,12 +15,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SCANNED = ("generator", "trajectories", "exporters")
-NUMPY_DISPATCHED = {"sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh", "exp",
-                    "exp2", "expm1", "log", "log1p", "log2", "log10", "power", "float_power", "cbrt", "hypot"}
-NUMPY_BLAS = {"dot", "matmul", "inner", "vdot", "tensordot", "outer"}
-MATH_DISPATCHED = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "exp2",
-                   "expm1", "log", "log1p", "log2", "log10", "pow", "hypot", "dist", "cbrt"}
-EXACT_POWERS = (2, 0.5, 1, -1)  # numpy turns these into a square, a square root, a copy, a reciprocal
+NUMPY_DISPATCHED = {"sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh", "arcsinh",
+                    "arccosh", "arctanh", "exp", "exp2", "expm1", "log", "log1p", "log2", "log10", "logaddexp",
+                    "logaddexp2", "power", "float_power", "cbrt", "hypot", "angle", "sinc"}
+NUMPY_BLAS = {"dot", "matmul", "inner", "vdot", "vecdot", "tensordot", "outer", "convolve", "correlate", "cov",
+              "corrcoef", "polyfit"}
+MATH_DISPATCHED = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh", "acosh",
+                   "atanh", "exp", "exp2", "expm1", "log", "log1p", "log2", "log10", "pow", "hypot", "dist", "cbrt"}
 
 # (file, expression): why it cannot change a byte of a seed's output
 ALLOWED = {
@@ -47,27 +48,49 @@ def _is_int_constant(node: ast.AST) -> bool:
     return isinstance(node, ast.Constant) and type(node.value) is int
 
 
+def _elementwise_norm(call: ast.Call) -> bool:
+    """np.linalg.norm along a given axis with the default order: a square root of a sum of
+    squares, element-wise (any other order, or no axis, goes to BLAS or the SVD)."""
+    keywords = {k.arg: k.value for k in call.keywords}
+    axis = keywords.get("axis")
+    default_order = len(call.args) == 1 and ("ord" not in keywords or ast.unparse(keywords["ord"]) == "None")
+    return default_order and axis is not None and ast.unparse(axis) != "None"
+
+
+def _flagged(node: ast.AST) -> bool:
+    if isinstance(node, (ast.BinOp, ast.AugAssign)) and isinstance(node.op, ast.MatMult):
+        return True
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):  # Python's pow is the C library's
+        return not (_is_int_constant(node.left) and _is_int_constant(node.right))
+    if isinstance(node, ast.AugAssign) and isinstance(node.op, ast.Pow):
+        return True
+    if isinstance(node, ast.ImportFrom):  # names that the calls below would no longer show
+        module, names = node.module or "", {a.name for a in node.names}
+        return (module.endswith("linalg") or (module == "math" and bool(names & MATH_DISPATCHED))
+                or (module == "numpy" and bool(names & (NUMPY_DISPATCHED | NUMPY_BLAS))))
+    if isinstance(node, ast.Import):
+        return any(a.name.endswith("linalg") for a in node.names)
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+        return node.func.id == "pow"
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+        base, name = ast.unparse(node.func.value), node.func.attr
+        if name == "dot":  # x.dot(y) as well as np.dot
+            return True
+        if base in ("np", "numpy"):
+            if name == "einsum":  # optimize= hands contractions to BLAS
+                return any(k.arg == "optimize" and ast.unparse(k.value) != "False" for k in node.keywords)
+            return name in NUMPY_DISPATCHED | NUMPY_BLAS
+        if base.endswith("linalg"):  # numpy's and scipy's
+            return not (name == "norm" and _elementwise_norm(node))
+        if base == "math":
+            return name in MATH_DISPATCHED
+    return False
+
+
 def dispatched_calls(source: str) -> list[tuple[int, str]]:
     """(line, expression) of every CPU-dependent operation in a Python source."""
-    found = []
-    for node in ast.walk(ast.parse(source)):
-        hit = False
-        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.MatMult):
-            hit = True
-        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
-            exact = isinstance(node.right, ast.Constant) and node.right.value in EXACT_POWERS
-            hit = not exact and not (_is_int_constant(node.left) and _is_int_constant(node.right))
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
-            base, name = ast.unparse(node.func.value), node.func.attr
-            if base in ("np", "numpy"):
-                hit = name in NUMPY_DISPATCHED | NUMPY_BLAS
-            elif base in ("np.linalg", "numpy.linalg"):  # a norm along an axis is element-wise
-                hit = not (name == "norm" and any(k.arg == "axis" for k in node.keywords))
-            elif base == "math":
-                hit = name in MATH_DISPATCHED
-        if hit:
-            found.append((node.lineno, ast.get_source_segment(source, node)))
-    return found
+    return [(node.lineno, ast.get_source_segment(source, node)) for node in ast.walk(ast.parse(source))
+            if _flagged(node)]
 
 
 def _sources() -> list[Path]:
@@ -77,12 +100,19 @@ def _sources() -> list[Path]:
 
 def test_the_scanner_finds_each_kind_of_dispatched_call():
     """The scanner itself: each kind it must catch, and the exact forms it must let through."""
-    caught = ["a @ b", "np.arctan2(y, x)", "np.sin(t)", "t ** 3", "x ** 1.5", "math.atan2(y, x)", "math.exp(x)",
-              "np.linalg.norm(v)", "np.linalg.inv(m)", "np.linalg.svd(m)", "np.dot(a, b)", "numpy.exp(x)"]
+    caught = ["a @ b", "np.arctan2(y, x)", "np.sin(t)", "t ** 3", "x ** 1.5", "x ** 2", "math.atan2(y, x)",
+              "math.exp(x)", "np.linalg.norm(v)", "np.linalg.norm(v, axis=None)", "np.linalg.norm(v, 2, axis=1)",
+              "np.linalg.norm(m, ord='nuc', axis=(0, 1))", "np.linalg.inv(m)", "np.linalg.svd(m)",
+              "scipy.linalg.expm(m)", "np.dot(a, b)", "a.T.dot(b)", "numpy.exp(x)", "np.arcsinh(x)",
+              "np.angle(z)", "pow(x, 3)", "np.einsum('ij,jk->ik', a, b, optimize=True)",
+              "from numpy.linalg import inv", "from math import sin, sqrt", "from numpy import arctan2",
+              "import numpy.linalg as la"]
     for expr in caught:
         assert [e for _, e in dispatched_calls(expr)] == [expr], expr
-    for expr in ("x ** 2", "x ** 0.5", "2 ** 63", "np.linalg.norm(v, axis=1)", "np.sqrt(x)", "np.radians(a)",
-                 "math.sqrt(x)", "portable_math.atan2(y, x)"):
+    assert len(dispatched_calls("x @= y")) == 1 and len(dispatched_calls("x **= 3")) == 1
+    for expr in ("2 ** 63", "np.linalg.norm(v, axis=1)", "np.linalg.norm(v, axis=-1, keepdims=True)", "np.sqrt(x)",
+                 "np.radians(a)", "math.sqrt(x)", "math.fsum(v)", "portable_math.atan2(y, x)",
+                 "np.einsum('ij,ij->i', a, b)", "from math import sqrt, pi", "from numpy.random import default_rng"):
         assert dispatched_calls(expr) == [], expr
 
 

@@ -285,3 +285,26 @@ def test_the_rotation_fallbacks_do_not_depend_on_the_cpu():
     digests = [_digests(core, FALLBACK_PROBE) for core in CORES]
     assert len({ours for ours, _ in digests}) == 1, "a fallback's rotation changes with the CPU's kernels"
     assert len({numpys for _, numpys in digests}) > 1, "the stand-ins did not change LAPACK's SVD"
+
+
+def test_rigid_fit_of_collinear_points_and_polar_factor_far_from_unit_scale():
+    """Review findings: a cross-covariance of rank one (collinear points, two points) has
+    cofactors and a determinant of round-off, which polar_factor must refuse (it used to
+    return a wrong rotation: residuals of centimetres); matrices far from unit scale must not
+    overflow into NaN; and orthogonal_factor must pick a reflection for a mirrored matrix at
+    any scale (the sign of its determinant under- or overflows)."""
+    rng = np.random.default_rng(14)
+    for k in range(300):
+        line = rng.normal(size=3)
+        a = rng.uniform(-1, 1, (2 + k % 5, 1)) * line + rng.uniform(-20, 20, 3)
+        r, t = _rotation(rng), rng.uniform(-50, 50, 3)
+        fit, residual = rigid_fit(a, a @ r.T + t)
+        assert np.isfinite(fit).all() and residual < 1e-9, (k, residual)
+    for scale in (1e-300, 1e-200, 1e103, 1e200, 1e300):
+        r = _rotation(rng)
+        assert np.abs(polar_factor(scale * r) - r).max() < 1e-14
+        mirror = r * [1.0, 1.0, -1.0]
+        assert np.abs(orthogonal_factor(scale * mirror @ np.diag([1.0, 1e-10, 1.0])) - mirror).max() < 1e-9
+        if scale < 1e150:  # (beyond, the residual's squares overflow: no point sets of that size)
+            fit, _ = rigid_fit(scale * rng.normal(size=(10, 3)), np.zeros((10, 3)))
+            assert np.isfinite(fit).all()

@@ -94,7 +94,8 @@ def site_area_lower_bound(preset: str) -> float:
     """Square metres of surface a site of ``preset`` has at least (its ground alone)."""
     from ..scene.site import PRESETS
 
-    return PRESETS[preset].size ** 2
+    size = PRESETS[preset].size
+    return size * size  # not ** 2: Python's power is the C library's pow, picked by CPU
 
 
 def check_point_budget(cfg: RunConfig, surface_points: int) -> None:

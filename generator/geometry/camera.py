@@ -11,6 +11,7 @@ Conventions (docs/conventions.md):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,17 +111,20 @@ def orthonormalize(rotation: np.ndarray) -> np.ndarray:
 def orthogonal_factor(a: np.ndarray) -> np.ndarray:
     """The orthogonal matrix nearest to a 3x3 matrix (U V^T of its SVD), the same bits on
     every CPU: :func:`polar_factor` where it applies; for the singular or badly conditioned
-    matrices it refuses, the nearest rotation (determinant >= 0) or reflection (< 0) by
+    matrices it refuses, the nearer of the nearest rotation and the nearest reflection by
     Horn's method (:mod:`.nearest_rotation`). A singular matrix has several nearest
     orthogonal matrices: the rotation among them is taken."""
     try:
         return polar_factor(a)
     except ValueError:
         pass
+    rotation, reflection = nearest_rotation(a), nearest_reflection(a)
+    # the nearer of the two (the larger trace(Q^T a)), a reflection only when nearer by more
+    # than round-off; not by the sign of the determinant, which is round-off for a nearly
+    # singular matrix and under- or overflows far from 1
     a = np.asarray(a, dtype=np.float64)
-    if a.shape == (3, 3) and np.isfinite(a).all() and _cofactors_3x3(a)[1] < 0:
-        return nearest_reflection(a)
-    return nearest_rotation(a)
+    nearer = np.sum(reflection * a) > np.sum(rotation * a) + 1e-12 * np.sum(np.abs(a))
+    return reflection if nearer else rotation
 
 
 def _cofactors_3x3(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -154,8 +158,17 @@ def polar_factor(a: np.ndarray, iterations: int = 60) -> np.ndarray:
     x = np.array(a, dtype=np.float64)
     if x.shape != (3, 3) or not np.isfinite(x).all():
         raise ValueError("polar_factor needs a finite 3x3 matrix")
+    peak = float(np.abs(x).max())
+    if peak > math.ldexp(1.0, 100) or 0 < peak < math.ldexp(1.0, -100):
+        # far from 1 the cofactors would over- or underflow: scale by a power of two (exact),
+        # which the polar factor ignores
+        x = np.ldexp(x, -math.frexp(peak)[1])
     cof, det = _cofactors_3x3(x)
-    if det == 0 or not np.isfinite(cof / det).all() or _frobenius(x) * _frobenius(cof / det) > POLAR_MAX_CONDITION:
+    size = _frobenius(x)
+    # (the second test: cofactors far below |x|^2 mean a matrix of rank one to round-off, whose
+    # cofactors and determinant are both noise, so that the condition estimate can look fine)
+    if (det == 0 or not np.isfinite(cof / det).all() or size * _frobenius(cof / det) > POLAR_MAX_CONDITION
+            or not _frobenius(cof) >= size * size / POLAR_MAX_CONDITION):
         raise ValueError("polar_factor needs an invertible, well-conditioned 3x3 matrix")
     for k in range(iterations):
         cof, det = _cofactors_3x3(x)
@@ -165,7 +178,7 @@ def polar_factor(a: np.ndarray, iterations: int = 60) -> np.ndarray:
         if np.array_equal(nxt, x):
             break
         x = nxt
-    if np.abs(matmul_exact(x.T, x) - np.eye(3)).max() > 1e-12:
+    if not np.abs(matmul_exact(x.T, x) - np.eye(3)).max() <= 1e-12:  # (NaN fails too: overflow)
         raise ValueError("polar_factor did not converge (a badly conditioned matrix)")
     return x
 

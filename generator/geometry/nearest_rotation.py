@@ -61,9 +61,10 @@ def _rotate(a: list[list[float]], v: list[list[float]], p: int, q: int) -> None:
         v[r][q] = vrq + s * (vrp - tau * vrq)
 
 
-def top_eigenvector_4(n: list[list[float]]) -> list[float]:
-    """Unit eigenvector of a symmetric 4x4 matrix (lists of floats) for its largest
-    eigenvalue (the first in index order where several tie), by cyclic Jacobi sweeps."""
+def _top_eigenvector_4(n: list[list[float]]) -> list[float]:
+    """Unit eigenvector of a symmetric 4x4 matrix (lists of floats, entries of order 1: the
+    caller scales them) for its largest eigenvalue (the first in index order where several
+    tie), by cyclic Jacobi sweeps."""
     a = [list(map(float, row)) for row in n]
     v = [[1.0 if i == j else 0.0 for j in range(4)] for i in range(4)]
     scale = sum(x * x for row in a for x in row)
@@ -99,7 +100,7 @@ def nearest_rotation(m: np.ndarray) -> np.ndarray:
         return np.eye(3)
     # by a power of two: the entries keep their bits and their squares stay in range
     m = np.ldexp(m, -math.frexp(peak)[1])
-    return quaternion_matrix(top_eigenvector_4(_horn_matrix(m.tolist())))
+    return quaternion_matrix(_top_eigenvector_4(_horn_matrix(m.tolist())))
 
 
 def nearest_reflection(m: np.ndarray) -> np.ndarray:

@@ -332,7 +332,7 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
         plan.placed.append(PlacedAsset(asset, (0.0, 0.0), 0.0, Footprint((0.0, 0.0), (0.0, 0.0))))
 
     # props
-    area = params.size**2
+    area = params.size * params.size  # not ** 2: the C library's pow is picked by CPU
     n_props = int(round(params.density * area / 170.0))
     weights = np.array([w for _, _, w, _ in PROP_KINDS], dtype=float)
     kinds = rng.choice(len(PROP_KINDS), size=n_props, p=weights / weights.sum())
