@@ -16,7 +16,7 @@ from trajectories import KINDS
 
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
 from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS
-from .cli_args import OneLineParser, int_at_least, positive_float, resolution
+from .cli_args import OneLineParser, check_out_folder, int_at_least, out_folder, positive_float, resolution
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
@@ -53,7 +53,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                     "'python -m generator verify DIR' checks a dataset (see its --help).")
     p.add_argument("--seeds", type=int_at_least(0, "seed", MAX_SEED), nargs="+", default=[0, 137, 281],
                    help="scene seeds, integers from 0 to 2**63-1 (default: 0 137 281)")
-    p.add_argument("--out", type=Path, default=Path("output"), help="output folder (default: ./output)")
+    p.add_argument("--out", type=out_folder, default=Path("output"), help="output folder (default: ./output)")
     p.add_argument("--scene-preset", choices=sorted(SCENE_PRESETS), default=DEFAULTS.scene_preset,
                    help=f"site size and content (default: {DEFAULTS.scene_preset})")
     p.add_argument("--render-preset", choices=list(RENDER_PRESETS), default=DEFAULTS.render_preset,
@@ -106,8 +106,15 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--wait", action="store_true",
                    help="wait for seeds another run is writing (default: skip them, exit code 4)")
     args = p.parse_args(argv)
-    if len(set(args.seeds)) != len(args.seeds):
-        p.error("--seeds lists a seed twice")
+    twice = [s for i, s in enumerate(args.seeds) if s in args.seeds[:i]]
+    if twice:
+        p.error(f"--seeds lists seed {twice[0]} twice")
+    outputs = _outputs(args.outputs)
+    if not outputs:
+        p.error("--outputs names no modality; list some of: " + ", ".join(MODALITIES) + " (or leave it out: all)")
+    if len(set(outputs)) != len(outputs):
+        p.error(f"--outputs lists {next(o for i, o in enumerate(outputs) if o in outputs[:i])} twice")
+    check_out_folder(p, args.out)
     ray_only = [o for o, v in (("--ray-address", args.ray_address), ("--cpus-per-seed", args.cpus_per_seed),
                                ("--retries", args.retries)) if v is not None]
     if args.executor != "ray" and ray_only:
@@ -118,7 +125,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device,
-                            outputs=_outputs(args.outputs), phases=args.phases)
+                            outputs=outputs, phases=args.phases)
     try:
         args.config.validated()
     except ValueError as exc:
@@ -136,13 +143,7 @@ def main(argv=None) -> int:
         return verify(argv[1:])
     args = parse_args(argv)
     cfg = args.config
-    from exporters.manifest import seed_folder_containing
-
     try:
-        inside = seed_folder_containing(args.out)
-        if inside:
-            print(f"error: --out {args.out} is inside the seed folder {inside}; choose a folder outside it", file=sys.stderr)
-            return 2
         args.out.mkdir(parents=True, exist_ok=True)
         probe = args.out / f".write-test-{os.getpid()}"
         probe.write_text("")

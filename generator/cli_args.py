@@ -5,15 +5,42 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+from pathlib import Path
 
 
 class OneLineParser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line (no usage block) and exit with 2."""
 
     def error(self, message: str):
+        if message.endswith("expected one argument"):  # e.g. --resolution -64x48: argparse reads it as an option
+            message += " (a value cannot start with '-': negative numbers are not accepted here)"
         print(f"error: {message} (see {self.prog} --help)", file=sys.stderr)
         sys.exit(2)
+
+
+def out_folder(text: str) -> Path:
+    """An argparse type: a folder path, not empty (an empty one would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must name a folder, got an empty path")
+    return Path(text)
+
+
+def check_out_folder(parser: argparse.ArgumentParser, out: Path, flag: str = "--out") -> None:
+    """``parser.error`` unless ``out`` can be an output folder: not an existing file, not
+    inside a seed folder of python -m generator (which only the generator writes)."""
+    if os.path.lexists(out) and not out.is_dir():
+        parser.error(f"{flag} {out} exists and is not a folder; name a folder")
+    from exporters.manifest import seed_folder_containing
+
+    try:
+        inside = seed_folder_containing(out)
+    except OSError as exc:
+        parser.error(f"{flag} {out}: cannot look at it ({exc.strerror}); choose another folder")
+    if inside is not None:
+        parser.error(f"{flag} {out} is inside the seed folder {inside}, which only python -m generator writes; "
+                     "choose a folder outside it")
 
 
 def int_at_least(minimum: int, what: str, maximum: int | None = None):

@@ -204,7 +204,11 @@ def test_reconstruction_points_lie_on_the_scene(tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["exploration", "--steps", "0", "--out", "x"], "integer >= 1"),
     (["reconstruction", "--voxel", "-1", "--out", "x"], "positive number of metres"),
-    (["exploration", "--seeds", "1", "1", "--out", "x"], "lists a seed twice"),
+    (["exploration", "--seeds", "1", "1", "--out", "x"], "lists seed 1 twice"),
+    (["exploration", "--seeds", str(2**63), "--out", "x"], "seed must be an integer from 0 to 9223372036854775807"),
+    (["reconstruction", "--seed", str(2**64), "--out", "x"], "seed must be an integer from 0 to 9223372036854775807"),
+    (["exploration", "--out", ""], "must name a folder, got an empty path"),
+    (["reconstruction", "--out", __file__], "exists and is not a folder; name a folder"),
     (["reconstruction", "--gt-density", "1e12", "--out", "x"], "the limit is 25,000,000"),
 ])
 def test_bad_arguments(args, message):

@@ -325,6 +325,13 @@ def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(
         (["--shard", "3/2"], "shard must be K/N"),
         (["--shard", "x"], "shard must be K/N"),
         (["--resolution", "0x10"], "resolution must be WxH"),
+        (["--resolution", "-64x48"], "a value cannot start with '-'"),
+        (["--seeds", "3", "4", "3"], "--seeds lists seed 3 twice"),
+        (["--outputs", ""], "--outputs names no modality"),
+        (["--outputs", " , "], "--outputs names no modality"),
+        (["--outputs", "rgb,depth,rgb"], "--outputs lists rgb twice"),
+        (["--out", ""], "--out: must name a folder, got an empty path"),
+        (["--out", __file__], "exists and is not a folder; name a folder"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path, args, message):

@@ -194,6 +194,23 @@ def test_without_an_address_a_local_ray_is_started_and_stopped(finished, tmp_pat
         subprocess.run(["rm", "-rf", str(temp)])
 
 
+def test_local_ray_without_a_node_big_enough_is_exit_2(tmp_path):
+    """No node can join the Ray a run starts for itself: --cpus-per-seed above its CPUs is a
+    one-line error, not a wait that never ends (it was a warning, then a wait)."""
+    temp = Path(tempfile.mkdtemp(prefix="bray", dir="/tmp"))
+    try:
+        r = run(tmp_path, "--seeds", "1", "--executor", "ray", "--cpus-per-seed", "1000", timeout=120,
+                env_extra=RAY_ENV | {"RAY_TMPDIR": str(temp)})
+        assert r.returncode == 2 and "--cpus-per-seed 1000: this machine has" in r.stderr, r.stderr[-2000:]
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in r.stderr
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(("seed_", ".seed_"))]
+        time.sleep(1.0)
+        assert not processes_of(set(), str(temp)), "the run left its Ray running"
+    finally:
+        subprocess.run(["rm", "-rf", str(temp)])
+
+
 def test_unreachable_address_is_one_line_and_exit_2(tmp_path):
     [port] = free_ports(1)
     for address, says in ((f"{HEAD_IP}:{port}", "no Ray cluster answers at"), ("nowhere", "HOST:PORT"),

@@ -269,9 +269,11 @@ def test_out_inside_a_seed_folder_is_refused(tmp_path, finished):
     for out in (folder, folder / "orbit", folder / "new" / "deeper"):
         r = run(out, "--seeds", "1")
         assert r.returncode == 2 and "is inside the seed folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    # the other CLIs that write files refuse it too: the site builder and the viewer
+    # the other CLIs that write files refuse it too: the site builder, the baselines and the viewer
     # (viewing the original seed, recording into the copy)
     for cmd in (["generator.scene", "--seed", "1", "--preset", "small", "--no-preview", "--out", str(folder / "scene2")],
+                ["generator.baselines", "exploration", "--scene-preset", "small", "--out", str(folder / "b")],
+                ["generator.baselines", "reconstruction", "--scene-preset", "small", "--out", str(folder)],
                 ["datasets.view", str(finished[0] / "seed_000004"), "--out", str(folder / "view.rrd")]):
         r = subprocess.run([sys.executable, "-m", *cmd], capture_output=True, text=True, cwd=ROOT, env=_env())
         assert r.returncode == 2 and "inside the seed folder" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
-from ..cli_args import OneLineParser, int_at_least, positive_float, resolution
+from ..batch.config import MAX_SEED
+from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder, positive_float, resolution
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -20,7 +20,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p = OneLineParser(prog="python -m generator.baselines", description="The paper's baselines and their tables.")
     sub = p.add_subparsers(dest="task", required=True, parser_class=OneLineParser)
     e = sub.add_parser("exploration", help="table 2 / figure 8: random walks, coverage AUC (geometry only)")
-    e.add_argument("--seeds", type=int_at_least(0, "seed"), nargs="+", default=[0, 137, 281])
+    e.add_argument("--seeds", type=int_at_least(0, "seed", MAX_SEED), nargs="+", default=[0, 137, 281])
     e.add_argument("--steps", type=int_at_least(1, "steps"), default=500, help="actions per run (default 500)")
     e.add_argument("--runs", type=int_at_least(1, "runs"), default=10, help="runs per seed and method (default 10)")
     e.add_argument("--max-depth", type=positive_float("a positive number of metres"), default=20.0, help="points count as seen within this depth (default 20 m)")
@@ -28,9 +28,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     e.add_argument("--scene-preset", choices=sorted(PRESETS), default="medium")
     e.add_argument("--paper-code-actions", action="store_true",
                    help="random walk with the paper's code's actions as written (two lefts, no right)")
-    e.add_argument("--out", type=Path, required=True)
+    e.add_argument("--out", type=out_folder, required=True)
     r = sub.add_parser("reconstruction", help="table 3 / figure 9: random walk, depth + labels fused into voxels")
-    r.add_argument("--seed", type=int_at_least(0, "seed"), default=0)
+    r.add_argument("--seed", type=int_at_least(0, "seed", MAX_SEED), default=0)
     r.add_argument("--steps", type=int_at_least(1, "steps"), default=100, help="actions (default 100), one frame rendered before each")
     r.add_argument("--voxel", type=positive_float("a positive number of metres"), default=0.05, help="voxel size in metres (default 0.05)")
     r.add_argument("--tau", type=positive_float("a positive number of metres"), default=0.1, help="distance threshold of the metrics (default 0.1 m)")
@@ -38,10 +38,13 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="points per square metre of the ground-truth cloud (default 100, as the paper's code)")
     r.add_argument("--resolution", type=resolution, default=(640, 480), help="WxH pixels (default 640x480)")
     r.add_argument("--scene-preset", choices=sorted(PRESETS), default="medium")
-    r.add_argument("--out", type=Path, required=True)
+    r.add_argument("--out", type=out_folder, required=True)
     args = p.parse_args(argv)
-    if args.task == "exploration" and len(set(args.seeds)) != len(args.seeds):
-        p.error("--seeds lists a seed twice")
+    if args.task == "exploration":
+        twice = [s for i, s in enumerate(args.seeds) if s in args.seeds[:i]]
+        if twice:
+            p.error(f"--seeds lists seed {twice[0]} twice")
+    check_out_folder(p, args.out)
     if args.task == "reconstruction":
         from ..batch.config import MAX_SCORING_POINTS, site_area_lower_bound
 

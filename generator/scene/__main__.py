@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
 
 from ..batch.config import MAX_FRAMES, MAX_SEED
-from ..cli_args import OneLineParser, int_at_least
+from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder
 from .site import LAYOUTS, PRESETS
 from .timeline import MAX_STAGES
 
@@ -18,7 +17,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int_at_least(0, "seed", MAX_SEED), required=True,
                    help="site seed, an integer from 0 to 2**63-1")
     p.add_argument("--preset", default="medium", choices=sorted(PRESETS), help="site preset (default: medium)")
-    p.add_argument("--out", type=Path, default=Path("site"), help="output folder (default: ./site)")
+    p.add_argument("--out", type=out_folder, default=Path("site"), help="output folder (default: ./site)")
     p.add_argument("--size", type=float, help="site side in metres (default: the preset's)")
     p.add_argument("--density", type=float, help="object density multiplier, 1 = typical (default: the preset's)")
     p.add_argument("--layout", choices=LAYOUTS, help="arrangement of the props (default: scattered)")
@@ -31,17 +30,7 @@ def main(argv=None) -> int:
                    help="which stage of the timeline to build, 0 to stages-1 (default: 0)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
-    if os.path.lexists(args.out) and not args.out.is_dir():
-        p.error(f"--out {args.out} exists and is not a folder; name a folder")
-    from exporters.manifest import seed_folder_containing
-
-    try:
-        inside = seed_folder_containing(args.out)
-    except OSError as exc:
-        p.error(f"--out {args.out}: cannot look at it ({exc.strerror}); choose another folder")
-    if inside is not None:
-        p.error(f"--out {args.out} is inside the seed folder {inside}, which only python -m generator writes; "
-                "choose a folder outside it")
+    check_out_folder(p, args.out)
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}

@@ -16,6 +16,7 @@ The driver keeps the seed's lock (runner.py) for the whole life of the task. bpy
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import socket
@@ -126,7 +127,7 @@ class RayExecutor(Executor):
         self.address = _connect(address)
         try:
             self.progress = ray.remote(Progress).options(num_cpus=0).remote()
-            _check_nodes(self.out, cpus_per_seed)
+            _check_nodes(self.out, cpus_per_seed, can_grow=self.address != "local")
         except BaseException:
             ray.shutdown()
             raise
@@ -229,29 +230,50 @@ def _connect(address: str | None) -> str:
     if address in (None, "local"):
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # a Ray of our own reports nowhere
         kwargs["include_dashboard"] = False
-    watchdog = threading.Timer(INIT_TIMEOUT_S, _give_up, args=(address,))
-    watchdog.daemon = True
-    watchdog.start()
     try:
-        ray.init(address=address or "local", **kwargs)
+        with _stderr_silenced() as terminal:
+            watchdog = threading.Timer(INIT_TIMEOUT_S, _give_up, args=(address, terminal))
+            watchdog.daemon = True
+            watchdog.start()
+            try:
+                ray.init(address=address or "local", **kwargs)
+            finally:
+                watchdog.cancel()
     except (ConnectionError, RuntimeError, ValueError) as exc:
         first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
         raise ExecutorError(f"cannot join the Ray cluster at {address}: {first}") from None
-    finally:
-        watchdog.cancel()
     return address or "local"
 
 
-def _give_up(address) -> None:
-    print(f"error: the Ray cluster at {address} did not answer within {INIT_TIMEOUT_S:.0f} s; check the address "
-          "(`ray status` on the head node), and if the cluster uses token authentication, set RAY_AUTH_MODE=token "
-          "(docs/scale.md)", file=sys.stderr, flush=True)
+@contextlib.contextmanager
+def _stderr_silenced():
+    """File descriptor 2 to /dev/null while Ray starts (its C++ core prints an info line about
+    RAY_BACKEND_LOG_LEVEL before it applies it); yields a descriptor of the real stderr."""
+    sys.stderr.flush()
+    terminal = os.dup(2)
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 2)
+    os.close(null)
+    try:
+        yield terminal
+    finally:
+        sys.stderr.flush()
+        os.dup2(terminal, 2)
+        os.close(terminal)
+
+
+def _give_up(address, terminal: int) -> None:
+    os.write(terminal, (f"error: the Ray cluster at {address} did not answer within {INIT_TIMEOUT_S:.0f} s; check the "
+                        "address (`ray status` on the head node), and if the cluster uses token authentication, set "
+                        "RAY_AUTH_MODE=token (docs/scale.md)\n").encode())
     os._exit(2)
 
 
-def _check_nodes(out: Path, cpus_per_seed: float) -> None:
+def _check_nodes(out: Path, cpus_per_seed: float, can_grow: bool = True) -> None:
     """Every live node sees ``out`` (a file written here) and can write there; ExecutorError
-    naming the first node that cannot. Warns when no node has ``cpus_per_seed`` CPUs."""
+    naming the first node that cannot. When no node has ``cpus_per_seed`` CPUs: a warning on
+    a cluster that nodes can join, an ExecutorError on the Ray started for this run (the
+    seeds would wait forever)."""
     secret = uuid.uuid4().hex
     token = out / f".ray-probe-{os.getpid()}-{secret[:8]}"
     token.write_text(secret)
@@ -269,6 +291,9 @@ def _check_nodes(out: Path, cpus_per_seed: float) -> None:
     finally:
         token.unlink(missing_ok=True)
     largest = max((n["Resources"].get("CPU", 0) for n in nodes), default=0)
+    if largest < cpus_per_seed and not can_grow:
+        raise ExecutorError(f"--cpus-per-seed {cpus_per_seed:g}: this machine has {largest:g} CPUs and no other "
+                            f"node can join the Ray started for this run; give at most {largest:g}")
     if largest < cpus_per_seed:
         print(f"warning: no node of the cluster has {cpus_per_seed:g} CPUs now (largest: {largest:g}); the seeds wait "
               "until one joins (lower --cpus-per-seed to use these nodes)", file=sys.stderr, flush=True)
