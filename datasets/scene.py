@@ -113,8 +113,15 @@ class Frame:
             return outputs[name]
         raise AttributeError(f"frame has no {name!r}" + (f" (modalities read: {', '.join(outputs)})" if outputs else ""))
 
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.outputs[name]
+    def __getitem__(self, name: str):
+        """A modality, or one of the camera fields (``K``, ``pose``, ``timestamp``, ``index``,
+        ``trajectory``); KeyError naming what the frame holds otherwise."""
+        if name in self.outputs:
+            return self.outputs[name]
+        if name in ("K", "pose", "timestamp", "index", "trajectory"):
+            return getattr(self, name)
+        raise KeyError(f"frame has no {name!r}; it holds {', '.join(self.outputs)} (modalities read) and K, pose, "
+                       "timestamp, index, trajectory")
 
     def as_dict(self) -> dict:
         return dict(self.outputs) | {"K": self.K, "pose": self.pose, "timestamp": self.timestamp,

@@ -218,7 +218,15 @@ class ToLinear:
 
 
 class Compose:
+    """Transforms applied in order: ``Compose(Crop(...), ToLinear())`` or, as torchvision
+    takes them, ``Compose([Crop(...), ToLinear()])``."""
+
     def __init__(self, *transforms):
+        if len(transforms) == 1 and isinstance(transforms[0], (list, tuple)):
+            transforms = tuple(transforms[0])
+        for t in transforms:
+            if not callable(t):
+                raise TypeError(f"Compose takes callables (transforms), got {type(t).__name__}: {t!r}")
         self.transforms = transforms
 
     def __call__(self, sample: dict) -> dict:

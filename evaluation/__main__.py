@@ -33,7 +33,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     r.add_argument("--sweep", type=positive_float("a positive number of metres"), nargs="+", default=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
                    help="thresholds of the precision/recall sweep, metres")
     r.add_argument("--crop", action="store_true", help="drop predicted points outside the GT's bounding box (+ margin)")
-    r.add_argument("--crop-margin", type=positive_float("a positive number of metres"), help="margin of --crop in metres (default: tau)")
+    r.add_argument("--crop-margin", type=positive_float("a number of metres >= 0", zero=True),
+                   help="margin of --crop in metres (default: tau)")
     r.add_argument("--voxel", type=positive_float("a positive number of metres"), help="voxel-downsample both clouds to this size (metres) first")
     r.add_argument("--static-only", action="store_true", help="score against the static part of the GT only")
     r.add_argument("--json", type=Path, help="write every number, parameter and version here")
@@ -65,7 +66,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                     help="change clouds: match distance in metres (default 0.1, strict <)")
     ch.add_argument("--kind", help="change masks: the trajectory they are for (default: the only one)")
     ch.add_argument("--json", type=Path, help="write the scores and every parameter here")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.task == "reconstruction" and args.crop_margin is not None and not args.crop:
+        r.error("--crop-margin applies to --crop; add --crop, or leave --crop-margin out")
+    return args
 
 
 OUTPUTS = ("json", "ply", "plot", "rrd")

@@ -284,6 +284,9 @@ class TrackReader:
         version = text(attribute(f, "format_version")) if "format_version" in f.attrs else None
         if version != FORMAT_VERSION:
             raise _version_error(self.path, version)
+        if "cameras" not in f and "visibility" not in f:  # another of our files (same format version)
+            raise DamagedFileError(f"{self.path}: not a tracks.h5 (its top level holds {', '.join(sorted(f)) or 'nothing'}); "
+                                   "give a trajectory's tracks.h5 (seed_NNNNNN/TRAJECTORY/tracks.h5)")
         cams = group(f, "cameras", self.path)
         self.width, self.height = (int(attribute(cams, k, self.path)) for k in ("width", "height"))
         self.K, self.poses = read(f, "cameras/K"), read(f, "cameras/world_from_camera")

@@ -59,6 +59,9 @@ def check_integer(name: str, value, low: int, high: int | None = None, *, valid:
     return int(value)
 
 
+MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
+
+
 def check_seed(name: str, value) -> int:
-    """A random seed: a non-negative integer (numpy integers too; bools and floats refused)."""
-    return check_integer(name, value, 0, valid="a non-negative integer")
+    """A random seed: an integer from 0 to MAX_SEED (numpy integers too; bools and floats refused)."""
+    return check_integer(name, value, 0, MAX_SEED, valid=f"an integer from 0 to {MAX_SEED} (2**63-1)")

@@ -9,6 +9,15 @@ from dataclasses import dataclass, fields, replace
 
 from .checks import check_integer, check_number
 
+MIN_SIDE = 4  # Blender renders sides below 4 pixels as 4 (measured: 3x2 gives a 4x4 image)
+MAX_SIDE = 16384  # Blender clamps above 65536
+
+
+def check_side(name: str, value, high: int = MAX_SIDE) -> int:
+    """An image side in pixels, MIN_SIDE to ``high``; else a one-line ValueError."""
+    return check_integer(name, value, MIN_SIDE, high, valid=f"an integer from {MIN_SIDE} to {high:,} pixels "
+                         f"(Blender renders smaller sides as {MIN_SIDE})")
+
 ENGINES = ("CYCLES", "BLENDER_EEVEE", "BLENDER_WORKBENCH")
 DEVICES = ("cpu", "gpu", "auto")  # Cycles device: the CPU, a CUDA/OptiX GPU, or a GPU when there is one
 DENOISE_PREFILTERS = ("NONE", "FAST", "ACCURATE")
@@ -98,7 +107,7 @@ def resolve_settings(preset: str | None = None, **overrides) -> RenderSettings:
             w, h = s.resolution
         except (TypeError, ValueError):
             raise ValueError(f"resolution must be (width, height), got {s.resolution!r}") from None
-        s = replace(s, resolution=(check_integer("resolution width", w, 1), check_integer("resolution height", h, 1)))
+        s = replace(s, resolution=(check_side("resolution width", w), check_side("resolution height", h)))
     return s
 
 

@@ -62,7 +62,7 @@ def test_bad_integers_give_one_line(args, kwargs, message):
 def test_integers_and_seeds_that_pass():
     assert check_integer("n", np.uint8(5), 1, 5) == 5 and type(check_integer("n", np.int64(3), 0)) is int
     assert check_integer("n", 10**30, 0) == 10**30  # no upper end unless one is given
-    assert check_seed("seed", np.int32(0)) == 0 and check_seed("seed", 2**63) == 2**63
-    for bad in (-1, True, 1.0, "1", None):
-        with pytest.raises(ValueError, match=r"^seed must be a non-negative integer, got "):
+    assert check_seed("seed", np.int32(0)) == 0 and check_seed("seed", 2**63 - 1) == 2**63 - 1
+    for bad in (-1, True, 1.0, "1", None, 2**63, 2**64):  # seeds are stored as signed 64-bit integers
+        with pytest.raises(ValueError, match=r"^seed must be an integer from 0 to 9223372036854775807 \(2\*\*63-1\), got "):
             check_seed("seed", bad)

@@ -282,3 +282,19 @@ def test_a_ground_truth_cloud_of_another_format_is_refused(seed_folder, tmp_path
             Scene(copy).point_cloud()
         with pytest.raises(InputError, match=says):
             score_reconstruction(seed_folder / "ground_truth" / "points.ply", copy)
+
+
+def test_frame_keys_and_both_forms_of_compose(seed_folder):
+    """frame["K"] as frame.K (the docs list K, pose and timestamp among a frame's contents), a
+    clear KeyError otherwise; Compose takes a list too (as torchvision's does)."""
+    frame = Scene(seed_folder)["orbit"][0]
+    assert frame["K"] is frame.K and frame["pose"] is frame.pose and frame["timestamp"] == frame.timestamp
+    with pytest.raises(KeyError, match="frame has no 'nope'; it holds .*depth.* and K, pose"):
+        frame["nope"]
+    as_args = FrameDataset(seed_folder, transform=Compose(Crop(8, 4, 32, 24), Resize(64, 48)))[0]
+    as_list = FrameDataset(seed_folder, transform=Compose([Crop(8, 4, 32, 24), Resize(64, 48)]))[0]
+    assert as_args.keys() == as_list.keys() and as_args["rgb"].shape == (48, 64, 3)
+    for key, value in as_args.items():  # (NaN flow where there is none: equal as NaN)
+        np.testing.assert_array_equal(value, as_list[key], err_msg=key)
+    with pytest.raises(TypeError, match="Compose takes callables"):
+        Compose([Crop(8, 4, 32, 24), "resize"])

@@ -130,6 +130,16 @@ def test_flipped_bytes_in_tracks_h5_are_refused_by_every_reader(seed_folder, per
         assert name in line
 
 
+def test_another_of_our_files_given_as_tracks_h5_is_named_as_such(seed_folder, perfect_tracks):
+    """scene.h5 has the same format version as tracks.h5: it is not a damaged tracks.h5, and
+    regenerating the seed would not help (the message used to say both)."""
+    scene = seed_folder / "ground_truth" / "scene.h5"
+    with pytest.raises(DamagedFileError, match=r"scene\.h5: not a tracks\.h5 \(its top level holds .*surface_points"):
+        read_tracks(scene)
+    line = assert_refused(cli("tracks", "--gt", scene, "--pred", perfect_tracks), "not a tracks.h5")
+    assert "regenerate" not in line and "damaged" not in line
+
+
 def test_no_single_byte_flip_in_tracks_h5_reads_back_as_other_values(seed_folder, tmp_path):
     """Every byte flip either fails to read or changes nothing readable (free space, padding)."""
     src = seed_folder / "orbit" / "tracks.h5"

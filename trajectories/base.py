@@ -104,8 +104,12 @@ class Trajectory:
             raise TrajectoryError(f"not a trajectory file: the header of {path} is not a JSON object with format and kind")
         if header.get("format") != FORMAT:
             raise TrajectoryError(f"unsupported trajectory format {header.get('format')!r} in {path}")
-        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(times) != len(poses):
-            raise TrajectoryError(f"inconsistent trajectory arrays in {path}")
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+            raise TrajectoryError(f"inconsistent trajectory arrays in {path}: poses must be (T, 4, 4), got "
+                                  f"{poses.shape}")
+        if times.shape != (len(poses),):
+            raise TrajectoryError(f"inconsistent trajectory arrays in {path}: {len(poses)} poses but timestamps of "
+                                  f"shape {times.shape}")
         return cls(poses, times, header["kind"], actions, header.get("params", {}))
 
 

@@ -8,14 +8,12 @@ import numpy as np
 
 from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
-from ..checks import check_integer, check_number
+from ..checks import MAX_SEED, check_integer, check_number  # noqa: F401  (MAX_SEED: the CLIs' bound)
+from ..render_settings import check_side
 
 # Bounds on what a run accepts, checked before any work (docs/guarantees.md).
-MIN_SIDE = 4  # Blender renders sides below 4 pixels as 4 (measured: 3x2 gives a 4x4 image)
-MAX_SIDE = 16384  # Blender clamps above 65536
 MAX_PIXELS = 3840 * 2160  # 4K UHD: a render peaks at ~920 bytes a pixel (measured), ~7.6 GB here
 MAX_FRAMES = 10_000  # per trajectory; the site's animation set-up grows faster than linearly past this
-MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)
 MAX_SCORING_POINTS = 25_000_000  # ground-truth cloud: ~220 bytes a point at peak (measured), ~5.5 GB
 MAX_PHASES = 16  # stages of a timeline (generator.scene.timeline.MAX_STAGES)
 MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every frame
@@ -48,8 +46,7 @@ class RunConfig:
         """Self, or ValueError naming the first value outside what a run can honour."""
         w, h = self.resolution
         for side, v in (("width", w), ("height", h)):
-            check_integer(f"resolution {side}", v, MIN_SIDE, MAX_SIDE, valid=f"an integer from {MIN_SIDE} to "
-                          f"{MAX_SIDE:,} pixels (Blender renders smaller sides as {MIN_SIDE})")
+            check_side(f"resolution {side}", v)
         if w * h > MAX_PIXELS:
             raise ValueError(f"resolution {w}x{h} is {w * h:,} pixels a frame; the limit is {MAX_PIXELS:,} (3840x2160)")
         check_integer("frames", self.frames, 2, MAX_FRAMES)

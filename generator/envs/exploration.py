@@ -21,6 +21,7 @@ from gymnasium import spaces
 
 from ..checks import check_integer, check_number, check_seed
 from ..render_settings import PRESETS as RENDER_PRESETS
+from ..render_settings import check_side
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, DISCRETE_ACTIONS, continuous_targets, discrete_target, heading_and_pitch
 from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
@@ -324,8 +325,7 @@ def _resolution(value) -> tuple[int, int]:
         w, h = value
     except (TypeError, ValueError):
         raise ValueError(f"resolution must be (width, height) in pixels, got {value!r}") from None
-    return (check_integer("resolution width", w, 1, MAX_RESOLUTION),
-            check_integer("resolution height", h, 1, MAX_RESOLUTION))
+    return check_side("resolution width", w, MAX_RESOLUTION), check_side("resolution height", h, MAX_RESOLUTION)
 
 
 def _discrete(action) -> int:

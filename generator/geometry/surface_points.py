@@ -6,8 +6,10 @@ import numpy as np
 
 from .camera import apply_affine, turn_normals
 from .parts import MeshPart
-from .sampling import ground_height, outward_normals, sample_part
+from .sampling import ground_height, outward_normals, sample_part, triangle_areas
 from .seeding import stream
+
+MAX_POINTS = 25_000_000  # a cloud of points takes ~220 bytes a point at its peak (measured): ~5.5 GB
 
 
 class SurfacePoints:
@@ -27,6 +29,11 @@ class SurfacePoints:
         ranges = np.zeros((len(parts), 2), dtype=np.int64)
         start = 0
         ground_z = ground_height(parts)
+        area = sum(float(triangle_areas(np.asarray(p.vertices, np.float64), np.asarray(p.faces, np.int64)).sum())
+                   for p in parts if len(p.faces))
+        if density * area > MAX_POINTS:
+            raise ValueError(f"points density {density:g} per m^2: this scene has {area:,.0f} m^2 of surface, so about "
+                             f"{density * area:,.0f} points; the limit is {MAX_POINTS:,} (lower the density)")
         for i, p in enumerate(parts):
             rng = stream(seed, "surface-points", p.name)
             pts, face = sample_part(p, density, rng, ground_z)
