@@ -143,8 +143,11 @@ def test_presets_resolve():
     ({"threads": True}, r"^threads must be an integer >= 0 \(0 = all cores\), got True$"),
     ({"adaptive_threshold": 1}, r"^adaptive_threshold must be a number in \[0, 1\) \(0 = off\), got 1$"),
     ({"adaptive_threshold": math.nan}, r"^adaptive_threshold must be a number in \[0, 1\) \(0 = off\), got nan$"),
-    ({"resolution": (64.0, 48)}, "^resolution width must be an integer >= 1, got 64.0$"),
-    ({"resolution": (64, 0)}, "^resolution height must be an integer >= 1, got 0$"),
+    ({"resolution": (64.0, 48)}, r"^resolution width must be an integer from 4 to 16,384 pixels \(Blender renders "
+                                  r"smaller sides as 4\), got 64.0$"),
+    ({"resolution": (64, 0)}, r"^resolution height must be an integer from 4 to 16,384 pixels .*got 0$"),
+    ({"resolution": (2, 2)}, r"^resolution width must be an integer from 4 .*got 2$"),  # Blender would render 4x4
+    ({"resolution": (100000, 10)}, r"^resolution width must be an integer from 4 to 16,384 pixels .*got 100000$"),
     ({"resolution": 64}, r"^resolution must be \(width, height\), got 64$"),
 ])
 def test_render_setting_numbers_are_one_line_errors(kwargs, message):
