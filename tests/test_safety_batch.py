@@ -310,15 +310,26 @@ def test_scene_cli_out_naming_a_file(tmp_path):
 
 
 def test_blender_clamps_sides_below_4(tmp_path):
-    """Why --resolution refuses sides below 4: Blender renders them as 4 (a real render)."""
+    """Why --resolution and configure_render refuse sides below 4: Blender renders them as 4
+    (a real render, asked of Blender directly), so K and the images would not match."""
     import scenes
+    from PIL import Image
+
     from generator import Simulator
+    from generator.blender import session
 
     sim = Simulator(scenes.walls_scene(tmp_path / "walls.blend"), points_density=1.0)
     sim.configure_render("preview", resolution=(4, 6))
     assert sim.render().rgb.shape[:2] == (6, 4)
-    sim.configure_render("preview", resolution=(3, 2))
-    assert sim.render().rgb.shape[:2] != (2, 3)
+    with pytest.raises(ValueError, match="resolution width must be an integer from 4 .*got 3"):
+        sim.configure_render("preview", resolution=(3, 2))
+    render = sim.scene.render
+    render.resolution_x, render.resolution_y, render.filepath = 3, 2, str(tmp_path / "tiny.png")
+    render.image_settings.media_type = "IMAGE"
+    render.image_settings.file_format = "PNG"
+    with session.quiet():
+        session.bpy.ops.render.render(write_still=True)
+    assert Image.open(tmp_path / "tiny.png").size != (3, 2)
 
 
 def test_ctrl_c_swallowed_inside_a_blocking_wait_still_stops_the_run(tmp_path):
