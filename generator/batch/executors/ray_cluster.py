@@ -21,6 +21,7 @@ import logging
 import os
 import socket
 import sys
+import tempfile
 import threading
 import time
 import uuid
@@ -245,21 +246,29 @@ def _connect(address: str | None) -> str:
     return address or "local"
 
 
+START_NOISE = "Set ray log level from environment variable"  # Ray's C++ core, at info level, before it applies it
+
+
 @contextlib.contextmanager
 def _stderr_silenced():
-    """File descriptor 2 to /dev/null while Ray starts (its C++ core prints an info line about
-    RAY_BACKEND_LOG_LEVEL before it applies it); yields a descriptor of the real stderr."""
+    """File descriptor 2 into a temporary file while Ray starts; afterwards its lines go to the
+    real stderr, but for Ray's info line about RAY_BACKEND_LOG_LEVEL (printed before the level
+    applies). Yields a descriptor of the real stderr (for the watchdog)."""
     sys.stderr.flush()
     terminal = os.dup(2)
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, 2)
-    os.close(null)
-    try:
-        yield terminal
-    finally:
-        sys.stderr.flush()
-        os.dup2(terminal, 2)
-        os.close(terminal)
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 2)
+        try:
+            yield terminal
+        finally:
+            sys.stderr.flush()
+            os.dup2(terminal, 2)
+            os.close(terminal)
+            caught.seek(0)
+            kept = [line for line in caught.read().decode(errors="replace").splitlines(True) if START_NOISE not in line]
+            if kept:
+                sys.stderr.write("".join(kept))
+                sys.stderr.flush()
 
 
 def _give_up(address, terminal: int) -> None:
