@@ -251,7 +251,7 @@ def test_scene_without_camera_or_meshes(tmp_path):
         ({"seed": True}, "seed must be an integer from 0 to"),
         ({"seed": 2.0}, "seed must be an integer from 0 to"),
         ({"seed": 2**64}, "seed must be an integer from 0 to 9223372036854775807"),
-        ({"points_density": 1e9}, r"points density 1e\+09 per m\^2: this scene has .* the limit is 25,000,000"),
+        ({"points_density": 1e9}, r"points density 1e\+09 per m\^2: this scene has .* the limit is 50,000,000"),
         ({"collision_radius": -0.1}, "collision_radius"),
         ({"points_density": "1.0"}, r"^points_density must be a finite number > 0, got '1.0'$"),
         ({"points_density": float("inf")}, r"^points_density must be a finite number > 0, got inf$"),

@@ -9,7 +9,10 @@ from .parts import MeshPart
 from .sampling import ground_height, outward_normals, sample_part, triangle_areas
 from .seeding import stream
 
-MAX_POINTS = 25_000_000  # a cloud of points takes ~220 bytes a point at its peak (measured): ~5.5 GB
+# a guard against clouds no machine holds (~220 bytes a point at the peak, measured: ~11 GB):
+# twice the batch job's budget (batch/config.py MAX_SCORING_POINTS), so that the budget, checked
+# before rendering on the points actually sampled, stays the one a run meets
+MAX_POINTS = 50_000_000
 
 
 class SurfacePoints:
