@@ -120,8 +120,8 @@ class Frame:
             return self.outputs[name]
         if name in ("K", "pose", "timestamp", "index", "trajectory"):
             return getattr(self, name)
-        raise KeyError(f"frame has no {name!r}; it holds {', '.join(self.outputs)} (modalities read) and K, pose, "
-                       "timestamp, index, trajectory")
+        read = f"{', '.join(self.outputs)} (modalities read)" if self.outputs else "no modalities (none read)"
+        raise KeyError(f"frame has no {name!r}; it holds {read} and K, pose, timestamp, index, trajectory")
 
     def as_dict(self) -> dict:
         return dict(self.outputs) | {"K": self.K, "pose": self.pose, "timestamp": self.timestamp,

@@ -16,7 +16,8 @@ from trajectories import KINDS
 
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
 from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS
-from .cli_args import OneLineParser, check_out_folder, int_at_least, out_folder, positive_float, resolution
+from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
+                       resolution)
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
@@ -106,14 +107,14 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--wait", action="store_true",
                    help="wait for seeds another run is writing (default: skip them, exit code 4)")
     args = p.parse_args(argv)
-    twice = [s for i, s in enumerate(args.seeds) if s in args.seeds[:i]]
-    if twice:
-        p.error(f"--seeds lists seed {twice[0]} twice")
+    twice = first_repeated(args.seeds)
+    if twice is not None:
+        p.error(f"--seeds lists seed {twice} twice")
     outputs = _outputs(args.outputs)
     if not outputs:
         p.error("--outputs names no modality; list some of: " + ", ".join(MODALITIES) + " (or leave it out: all)")
-    if len(set(outputs)) != len(outputs):
-        p.error(f"--outputs lists {next(o for i, o in enumerate(outputs) if o in outputs[:i])} twice")
+    if first_repeated(outputs) is not None:
+        p.error(f"--outputs lists {first_repeated(outputs)} twice")
     check_out_folder(p, args.out)
     ray_only = [o for o, v in (("--ray-address", args.ray_address), ("--cpus-per-seed", args.cpus_per_seed),
                                ("--retries", args.retries)) if v is not None]

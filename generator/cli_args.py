@@ -14,8 +14,9 @@ class OneLineParser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line (no usage block) and exit with 2."""
 
     def error(self, message: str):
-        if message.endswith("expected one argument"):  # e.g. --resolution -64x48: argparse reads it as an option
-            message += " (a value cannot start with '-': negative numbers are not accepted here)"
+        if message.endswith(("expected one argument", "expected at least one argument")):
+            # a missing value, or one starting with '-' (argparse reads --resolution -64x48 as an option)
+            message += " (no value given? a value that starts with '-' must be written --option=VALUE)"
         print(f"error: {message} (see {self.prog} --help)", file=sys.stderr)
         sys.exit(2)
 
@@ -69,17 +70,28 @@ def positive_float(what: str = "a positive number", zero: bool = False):
             v = math.nan
         if not ((v >= 0 if zero else v > 0) and math.isfinite(v)):
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
-        return v
+        return v + 0.0  # -0 as 0
 
     return parse
 
 
 def resolution(text: str) -> tuple[int, int]:
-    """WxH in pixels."""
+    """WxH in pixels, each side as render_settings.check_side allows."""
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         w = h = 0
     if w <= 0 or h <= 0:
         raise argparse.ArgumentTypeError(f"resolution must be WxH with positive integers, e.g. 640x480; got {text!r}")
-    return w, h
+    from .render_settings import check_side
+
+    try:
+        return check_side("resolution width", w), check_side("resolution height", h)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def first_repeated(values) -> object | None:
+    """The first value that ``values`` holds twice (None if none)."""
+    seen = set()
+    return next((v for v in values if v in seen or seen.add(v)), None)

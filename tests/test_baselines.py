@@ -209,6 +209,8 @@ def test_reconstruction_points_lie_on_the_scene(tmp_path):
     (["reconstruction", "--seed", str(2**64), "--out", "x"], "seed must be an integer from 0 to 9223372036854775807"),
     (["exploration", "--out", ""], "must name a folder, got an empty path"),
     (["reconstruction", "--out", __file__], "exists and is not a folder; name a folder"),
+    (["reconstruction", "--resolution", "3x2", "--out", "x"], "resolution width must be an integer from 4"),
+    (["exploration", "--scene-preset", "small", "--points-density", "1e5", "--out", "x"], "the limit is 25,000,000"),
     (["reconstruction", "--gt-density", "1e12", "--out", "x"], "the limit is 25,000,000"),
 ])
 def test_bad_arguments(args, message):

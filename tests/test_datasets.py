@@ -291,6 +291,8 @@ def test_frame_keys_and_both_forms_of_compose(seed_folder):
     assert frame["K"] is frame.K and frame["pose"] is frame.pose and frame["timestamp"] == frame.timestamp
     with pytest.raises(KeyError, match="frame has no 'nope'; it holds .*depth.* and K, pose"):
         frame["nope"]
+    with pytest.raises(KeyError, match="frame has no 'depth'; it holds no modalities \\(none read\\) and K, pose"):
+        Scene(seed_folder)["orbit"].read(0, keys=[])["depth"]
     as_args = FrameDataset(seed_folder, transform=Compose(Crop(8, 4, 32, 24), Resize(64, 48)))[0]
     as_list = FrameDataset(seed_folder, transform=Compose([Crop(8, 4, 32, 24), Resize(64, 48)]))[0]
     assert as_args.keys() == as_list.keys() and as_args["rgb"].shape == (48, 64, 3)

@@ -211,6 +211,39 @@ def test_local_ray_without_a_node_big_enough_is_exit_2(tmp_path):
         subprocess.run(["rm", "-rf", str(temp)])
 
 
+HANGING_INIT = """
+import os, socket, sys, time
+import ray
+from generator.batch.executors import ray_cluster
+
+ray_cluster.INIT_TIMEOUT_S = 1.0
+
+
+def init(**kwargs):  # a cluster that accepts the connection, says something, then never answers
+    os.write(2, b"[2026-11-23] logging.cc:303: Set ray log level from environment variable RAY_BACKEND_LOG_LEVEL to 2\\n")
+    os.write(2, b"C++ WARNING: the GCS did not answer\\n")
+    time.sleep(60)
+
+
+ray.init = init
+server = socket.socket()
+server.bind(("127.0.0.1", 0))
+server.listen()
+ray_cluster.RayExecutor(sys.argv[1], address=f"127.0.0.1:{server.getsockname()[1]}", cpus_per_seed=1.0, retries=0)
+"""
+
+
+def test_a_hanging_cluster_gives_up_with_what_ray_said(tmp_path):
+    """The start-up watchdog: exit 2 with its line, after what Ray wrote while it hung (stderr
+    is caught during ray.init to drop Ray's log-level info line, and must not swallow the rest)."""
+    r = subprocess.run([sys.executable, "-c", HANGING_INIT, str(tmp_path)], capture_output=True, text=True, cwd=ROOT,
+                       timeout=60, env=env())
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and lines[0] == "C++ WARNING: the GCS did not answer", r.stderr
+    assert lines[1].startswith("error: the Ray cluster at 127.0.0.1:") and "did not answer within 1 s" in lines[1]
+    assert len(lines) == 2 and "Set ray log level" not in r.stderr
+
+
 def test_unreachable_address_is_one_line_and_exit_2(tmp_path):
     [port] = free_ports(1)
     for address, says in ((f"{HEAD_IP}:{port}", "no Ray cluster answers at"), ("nowhere", "HOST:PORT"),

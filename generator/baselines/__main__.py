@@ -11,7 +11,8 @@ import sys
 import time
 
 from ..batch.config import MAX_SEED
-from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder, positive_float, resolution
+from ..cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
+                        resolution)
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -40,18 +41,17 @@ def parse_args(argv=None) -> argparse.Namespace:
     r.add_argument("--scene-preset", choices=sorted(PRESETS), default="medium")
     r.add_argument("--out", type=out_folder, required=True)
     args = p.parse_args(argv)
-    if args.task == "exploration":
-        twice = [s for i, s in enumerate(args.seeds) if s in args.seeds[:i]]
-        if twice:
-            p.error(f"--seeds lists seed {twice[0]} twice")
+    if args.task == "exploration" and first_repeated(args.seeds) is not None:
+        p.error(f"--seeds lists seed {first_repeated(args.seeds)} twice")
     check_out_folder(p, args.out)
-    if args.task == "reconstruction":
-        from ..batch.config import MAX_SCORING_POINTS, site_area_lower_bound
+    from ..batch.config import MAX_SCORING_POINTS, site_area_lower_bound
 
-        area = site_area_lower_bound(args.scene_preset)
-        if args.gt_density * area > MAX_SCORING_POINTS:
-            p.error(f"--gt-density {args.gt_density:g}: a {args.scene_preset} site has more than {area:,.0f} m^2 of "
-                    f"surface, so over {args.gt_density * area:,.0f} points; the limit is {MAX_SCORING_POINTS:,}")
+    area = site_area_lower_bound(args.scene_preset)
+    flag, density = ("--gt-density", args.gt_density) if args.task == "reconstruction" else ("--points-density",
+                                                                                           args.points_density)
+    if density * area > MAX_SCORING_POINTS:
+        p.error(f"{flag} {density:g}: a {args.scene_preset} site has more than {area:,.0f} m^2 of "
+                f"surface, so over {density * area:,.0f} points; the limit is {MAX_SCORING_POINTS:,}")
     return args
 
 
@@ -66,19 +66,23 @@ def main(argv=None) -> int:
 
     session.set_log_path(args.out / "blender.log")
     t0 = time.perf_counter()
-    if args.task == "exploration":
-        from .exploration import run_exploration, table
+    try:
+        if args.task == "exploration":
+            from .exploration import run_exploration, table
 
-        results = run_exploration(args.seeds, args.steps, args.runs, args.out, args.scene_preset, args.max_depth,
-                                  args.points_density, paper_code_actions=args.paper_code_actions)
-        print(table(results))
-        print(f"modified random walk beats random walk on every seed: {results['modified_beats_random_on_every_seed']}")
-    else:
-        from .reconstruction import run_reconstruction, table
+            results = run_exploration(args.seeds, args.steps, args.runs, args.out, args.scene_preset, args.max_depth,
+                                      args.points_density, paper_code_actions=args.paper_code_actions)
+            print(table(results))
+            print(f"modified random walk beats random walk on every seed: {results['modified_beats_random_on_every_seed']}")
+        else:
+            from .reconstruction import run_reconstruction, table
 
-        results = run_reconstruction(args.seed, args.steps, args.voxel, args.out, args.scene_preset, args.resolution,
-                                     args.tau, (args.gt_density,))
-        print(table(results))
+            results = run_reconstruction(args.seed, args.steps, args.voxel, args.out, args.scene_preset,
+                                         args.resolution, args.tau, (args.gt_density,))
+            print(table(results))
+    except ValueError as exc:  # the Simulator's and the site's own checks (one line each), e.g. a density too high
+        print(f"error: {str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__}", file=sys.stderr)
+        return 2
     print(f"took {time.perf_counter() - t0:.0f} s; results in {args.out}")
     return 0
 

@@ -231,9 +231,10 @@ def _connect(address: str | None) -> str:
     if address in (None, "local"):
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # a Ray of our own reports nowhere
         kwargs["include_dashboard"] = False
+    where = "the Ray started for this run" if address in (None, "local") else f"the Ray cluster at {address}"
     try:
-        with _stderr_silenced() as terminal:
-            watchdog = threading.Timer(INIT_TIMEOUT_S, _give_up, args=(address, terminal))
+        with _stderr_caught() as caught:
+            watchdog = threading.Timer(INIT_TIMEOUT_S, _give_up, args=(where, caught))
             watchdog.daemon = True
             watchdog.start()
             try:
@@ -242,39 +243,51 @@ def _connect(address: str | None) -> str:
                 watchdog.cancel()
     except (ConnectionError, RuntimeError, ValueError) as exc:
         first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
-        raise ExecutorError(f"cannot join the Ray cluster at {address}: {first}") from None
+        raise ExecutorError(f"cannot join {where}: {first}") from None
     return address or "local"
 
 
 START_NOISE = "Set ray log level from environment variable"  # Ray's C++ core, at info level, before it applies it
 
 
+class _Caught:
+    """What a process wrote to file descriptor 2 while it was caught, and the real stderr."""
+
+    def __init__(self, file, terminal: int):
+        self.file, self.terminal = file, terminal
+
+    def replay(self, fd: int) -> None:
+        """The caught lines, but for Ray's log-level info line, written to ``fd``."""
+        self.file.seek(0)
+        kept = [line for line in self.file.read().decode(errors="replace").splitlines(True) if START_NOISE not in line]
+        if kept:
+            os.write(fd, "".join(kept).encode())
+
+
 @contextlib.contextmanager
-def _stderr_silenced():
-    """File descriptor 2 into a temporary file while Ray starts; afterwards its lines go to the
-    real stderr, but for Ray's info line about RAY_BACKEND_LOG_LEVEL (printed before the level
-    applies). Yields a descriptor of the real stderr (for the watchdog)."""
+def _stderr_caught():
+    """File descriptor 2 into a temporary file while Ray starts, then replayed to the real
+    stderr without Ray's info line about RAY_BACKEND_LOG_LEVEL (printed before the level
+    applies). Yields the :class:`_Caught` (the watchdog replays it before it exits)."""
     sys.stderr.flush()
     terminal = os.dup(2)
-    with tempfile.TemporaryFile() as caught:
-        os.dup2(caught.fileno(), 2)
+    with tempfile.TemporaryFile() as file:
+        os.dup2(file.fileno(), 2)
+        caught = _Caught(file, terminal)
         try:
-            yield terminal
+            yield caught
         finally:
             sys.stderr.flush()
             os.dup2(terminal, 2)
             os.close(terminal)
-            caught.seek(0)
-            kept = [line for line in caught.read().decode(errors="replace").splitlines(True) if START_NOISE not in line]
-            if kept:
-                sys.stderr.write("".join(kept))
-                sys.stderr.flush()
+            caught.replay(2)
 
 
-def _give_up(address, terminal: int) -> None:
-    os.write(terminal, (f"error: the Ray cluster at {address} did not answer within {INIT_TIMEOUT_S:.0f} s; check the "
-                        "address (`ray status` on the head node), and if the cluster uses token authentication, set "
-                        "RAY_AUTH_MODE=token (docs/scale.md)\n").encode())
+def _give_up(where: str, caught: _Caught) -> None:
+    caught.replay(caught.terminal)  # what Ray said while it hung is often the diagnosis
+    os.write(caught.terminal, (f"error: {where} did not answer within {INIT_TIMEOUT_S:.0f} s; check the address "
+                               "(`ray status` on the head node), and if the cluster uses token authentication, set "
+                               "RAY_AUTH_MODE=token (docs/scale.md)\n").encode())
     os._exit(2)
 
 
