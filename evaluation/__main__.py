@@ -66,7 +66,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                     help="change clouds: match distance in metres (default 0.1, strict <)")
     ch.add_argument("--kind", help="change masks: the trajectory they are for (default: the only one)")
     ch.add_argument("--json", type=Path, help="write the scores and every parameter here")
-    args = p.parse_args(argv)
+    args, extra = p.parse_known_args(argv)
+    if extra:  # said by the task's own parser, so that its --help is the one pointed to
+        {"reconstruction": r, "coverage": c, "tracks": k, "change": ch}[args.task].error(
+            f"unrecognized arguments: {' '.join(extra)}")
     if args.task == "reconstruction" and args.crop_margin is not None and not args.crop:
         r.error("--crop-margin applies to --crop; add --crop, or leave --crop-margin out")
     return args

@@ -262,6 +262,8 @@ def _bad_inputs(folder, tmp):
         (["reconstruction", "--gt", no_manifest, "--pred", good], "incomplete seed folder"),
         (["reconstruction", "--gt", folder, "--pred", good, "--tau", "-1"], "positive number"),
         (["reconstruction", "--gt", folder, "--pred", good, "--crop-margin", "0.2"], "--crop-margin applies to --crop"),
+        (["change", "--gt", folder, "--pred", good, "--stages", "0", "1", "2"],
+         "unrecognized arguments: 2 (see python -m evaluation change --help)"),
         (["reconstruction", "--gt", folder, "--pred", good, "--crop", "--crop-margin", "-1"], "a number of metres >= 0"),
         (["coverage", "--gt", incomplete, "--trajectory", folder / "orbit" / "trajectory.npz"], "missing scene.h5"),
         (["coverage", "--gt", folder, "--trajectory", good], "trajectory"),
