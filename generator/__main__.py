@@ -14,8 +14,9 @@ from pathlib import Path
 
 from trajectories import KINDS
 
-from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, MAX_SEED, RunConfig
+from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, RunConfig
 from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS
+from .checks import MAX_SEED
 from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
                        resolution)
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu

@@ -9,6 +9,8 @@ import os
 import sys
 from pathlib import Path
 
+from .render_settings import check_side
+
 
 class OneLineParser(argparse.ArgumentParser):
     """An ArgumentParser whose errors are one line (no usage block) and exit with 2."""
@@ -83,8 +85,6 @@ def resolution(text: str) -> tuple[int, int]:
         w = h = 0
     if w <= 0 or h <= 0:
         raise argparse.ArgumentTypeError(f"resolution must be WxH with positive integers, e.g. 640x480; got {text!r}")
-    from .render_settings import check_side
-
     try:
         return check_side("resolution width", w), check_side("resolution height", h)
     except ValueError as exc:

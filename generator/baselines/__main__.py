@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 
-from ..batch.config import MAX_SEED
+from ..checks import MAX_SEED
 from ..cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
                         resolution)
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
-from ..checks import MAX_SEED, check_integer, check_number  # noqa: F401  (MAX_SEED: the CLIs' bound)
+from ..checks import check_integer, check_number
 from ..render_settings import check_side
 
 # Bounds on what a run accepts, checked before any work (docs/guarantees.md).

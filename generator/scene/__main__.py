@@ -6,7 +6,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..batch.config import MAX_FRAMES, MAX_SEED
+from ..batch.config import MAX_FRAMES
+from ..checks import MAX_SEED
 from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder
 from .site import LAYOUTS, PRESETS
 from .timeline import MAX_STAGES

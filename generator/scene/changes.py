@@ -22,8 +22,7 @@ import numpy as np
 
 from exporters.changes import STATUS  # codes 0..4 in changes.h5
 
-from ..geometry.camera import apply_affine, polar_factor, rows_times
-from ..geometry.nearest_rotation import nearest_rotation
+from ..geometry.camera import apply_affine, orthonormalize, rows_times
 
 ABSENT = -1  # the status of an object in neither stage
 POINT_TOLERANCE = 0.01  # metres: a point is unchanged if the other stage's surface is within this
@@ -48,14 +47,7 @@ def rigid_fit(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
     ca, cb = a.mean(axis=0), b.mean(axis=0)
     da, db = a - ca, b - cb
     h = np.array([[np.sum(da[:, i] * db[:, j]) for j in range(3)] for i in range(3)])  # (a - ca)^T (b - cb)
-    r = None
-    if np.isfinite(h).all():
-        try:
-            r = polar_factor(h.T)
-        except ValueError:  # singular: a flat or degenerate set of points
-            pass
-    if r is None or np.sum(np.cross(r[:, 0], r[:, 1]) * r[:, 2]) < 0:  # singular or a mirror: Horn's method
-        r = nearest_rotation(h.T)
+    r = orthonormalize(h.T)  # polar factor, else (flat, degenerate or mirrored sets) Horn's method
     t = np.eye(4)
     t[:3, :3], t[:3, 3] = r, cb - rows_times(ca, r.T)
     residual = float(np.max(np.linalg.norm(apply_affine(t, a) - b, axis=1))) if len(a) else 0.0
