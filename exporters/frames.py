@@ -17,7 +17,7 @@ from PIL import Image
 
 from .exr import read_frame_exr, write_frame
 from .hdf5 import REMEDY, DamagedFileError
-from .modalities import MODALITIES, Modality
+from .modalities import MODALITIES, Modality, produced_by
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
 INDEX_FILE = "frames.json"
@@ -74,6 +74,10 @@ class FramesSink:
         self.compression = compression
         self.attributes = {"buildee/labels": json.dumps(list(context.labels))}
         self.frames, self.size = 0, (int(context.width), int(context.height))
+        self.clip = tuple(float(c) for c in context.clip)
+        # the Simulator's settings that decide how depth, labels and ids were made (frames.json)
+        self.ground_truth = str(context.options.get("ground_truth", "geometry"))
+        self.sensitivity = float(context.options.get("segmentation_sensitivity", 0.0))
 
     def add_frame(self, frame: FrameRecord) -> None:
         i = frame.index
@@ -88,16 +92,21 @@ class FramesSink:
     def close(self) -> None:
         doc = {"format": "frames-1", "frames": self.frames, "width": self.size[0], "height": self.size[1],
                "pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
-               "modalities": {n: describe(MODALITIES[n]) for n in self.names}}
+               "clip": {"near": self.clip[0], "far": self.clip[1],
+                        "meaning": "planar depth limits in metres of the camera: no surface outside them is seen "
+                                   "(depth, labels, ids, normals, flow, tracks)"},
+               "ground_truth": self.ground_truth, "segmentation_sensitivity": self.sensitivity,
+               "modalities": {n: describe(MODALITIES[n], self.ground_truth, self.sensitivity) for n in self.names}}
         (self.folder / INDEX_FILE).write_text(json.dumps(doc, indent=1))
 
 
-def describe(m: Modality) -> dict:
-    """A modality's entry in frames.json."""
+def describe(m: Modality, ground_truth: str = "geometry", segmentation_sensitivity: float = 0.0) -> dict:
+    """A modality's entry in frames.json, as made with these Simulator settings."""
     files = ([frame_names(0)[0].replace("000000", "NNNNNN") + f" part {m.part}"] if m.part else []) + [
         png_name(p, 0).replace("000000", "NNNNNN") + (" (8-bit sRGB)" if k == "rgb8" else " (16-bit, id + 1, 0 = none)")
         for p, k in m.pngs]
-    return {"description": m.description, "source": m.source, "channels": list(m.channels) if m.part else [],
+    return {"description": m.description, "source": produced_by(m, ground_truth, segmentation_sensitivity),
+            "channels": list(m.channels) if m.part else [],
             "exr_type": m.exr_type if m.part else None, "dtype": m.dtype, "files": files}
 
 

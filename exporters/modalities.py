@@ -50,6 +50,9 @@ class Modality:
         callable ``(array, labels) -> (H, W, 3) uint8``, or None (not on the contact sheet).
     compute: for ``source="geometry"``: ``(generator.geometry.pixels.PixelGeometry) -> array``.
     dtype: numpy type the datasets return (the EXR type; ``rgb``: float32 from its 8-bit PNG).
+    truth: a ``"render"`` modality that ``render()`` takes from the Simulator's ``ground_truth``
+        source: cast at the pixel centres (``"geometry"``, the default) or Blender's passes
+        (``"renderer"``); see :func:`produced_by`.
     """
 
     name: str
@@ -63,6 +66,7 @@ class Modality:
     compute: Callable | None = None
     pngs: tuple[tuple[str, str], ...] = ()
     dtype: str = ""
+    truth: bool = False
 
     def __post_init__(self):
         if self.source not in ("render", "geometry"):
@@ -73,6 +77,8 @@ class Modality:
             raise ValueError(f"modality {self.name!r}: exr_type must be one of {', '.join(EXR_TYPES)}")
         if self.resample not in RESAMPLE:
             raise ValueError(f"modality {self.name!r}: resample must be one of {', '.join(RESAMPLE)}")
+        if self.truth and self.source != "render":
+            raise ValueError(f"modality {self.name!r}: only a 'render' modality can take the ground_truth source")
         if self.part not in (None, PART_OF_TYPE[self.exr_type]):
             raise ValueError(f"modality {self.name!r}: {self.exr_type} channels go to EXR part "
                              f"{PART_OF_TYPE[self.exr_type]!r} (or None: not in the EXR)")
@@ -125,6 +131,22 @@ def unregister_modality(name: str) -> None:
     MODALITIES.pop(name, None)
 
 
+def produced_by(m: Modality, ground_truth: str, segmentation_sensitivity: float) -> str:
+    """How modality ``m`` was made in a run with these Simulator settings (frames.json's
+    ``source``; docs/format.md, Per-frame modalities)."""
+    cast = "geometry: the scene's triangles hit by the ray through the pixel centre"
+    if m.source == "geometry" or (m.truth and ground_truth == "geometry"):
+        how = cast
+    elif m.truth:
+        how = "renderer: Blender's passes (ground_truth='renderer')"
+    else:
+        return "renderer: Blender's render"
+    if m.name == "label" and segmentation_sensitivity > 0:
+        how += (f", -1 where Blender's Cryptomatte coverage of the label is below segmentation_sensitivity "
+                f"{segmentation_sensitivity:g}")
+    return how
+
+
 def resolve(names=None) -> tuple[str, ...]:
     """Modality names in table order: all by default, else the given ones (a comma-separated
     string or an iterable); unknown names raise a ValueError listing the known ones."""
@@ -149,13 +171,14 @@ register_modality(Modality(
     "render", ("R", "G", "B"), "HALF", "colour", "area"))
 register_modality(Modality(
     "depth", "planar depth (camera z) in metres at the pixel centre, +inf = no surface",
-    "render", ("Z",), "FLOAT", "data", "bilinear", preview="depth"))
+    "render", ("Z",), "FLOAT", "data", "bilinear", preview="depth", truth=True))
 register_modality(Modality(
     "label", "semantic label id at the pixel centre (index into labels.json), -1 = unlabelled",
-    "render", ("label",), "UINT", "ids", "nearest", preview="labels", pngs=(("label", "id16"),)))
+    "render", ("label",), "UINT", "ids", "nearest", preview="labels", pngs=(("label", "id16"),), truth=True))
 register_modality(Modality(
     "instance", "object id at the pixel centre (index into the object table), -1 = no object",
-    "render", ("instance",), "UINT", "ids", "nearest", preview="ids", pngs=(("instance", "id16"),)))
+    "render", ("instance",), "UINT", "ids", "nearest", preview="ids", pngs=(("instance", "id16"),),
+    truth=True))
 register_modality(Modality(
     "normal", "unit surface normal at the pixel centre, world frame, facing the camera; 0 = no surface",
     "geometry", ("normal.X", "normal.Y", "normal.Z"), "FLOAT", "data", "unit_vector", preview="normal",

@@ -298,6 +298,29 @@ def test_toy_modality_reaches_exr_datasets_and_contact_sheet(flown):
     assert TOY in columns and sheet.size[0] >= len(columns) * (W + 4)
 
 
+def test_frames_json_names_how_each_modality_was_made(flown):
+    """frames.json says depth, labels and ids came from the ray cast (the Simulator's default
+    ground truth), and they do: a frame's depth and ids equal render_geometry's at its pose,
+    bit for bit; the clip it records bounds the depth."""
+    sim, seq, folder = flown
+    doc = json.loads((folder / "frames.json").read_text())
+    entries = doc["modalities"]
+    assert doc["ground_truth"] == sim.ground_truth == "geometry"
+    assert doc["segmentation_sensitivity"] == sim.segmentation_sensitivity
+    for name in ("depth", "label", "instance", "normal", "flow"):
+        assert entries[name]["source"].startswith("geometry:"), (name, entries[name]["source"])
+    assert entries["rgb"]["source"].startswith("renderer:")
+    assert ("segmentation_sensitivity" in entries["label"]["source"]) == (sim.segmentation_sensitivity > 0)
+    assert (doc["clip"]["near"], doc["clip"]["far"]) == (sim.clip_start, sim.clip_end)
+    f = seq[2]
+    sim.set_frame(1 + 2)
+    sim.set_world_from_camera(f.pose, check_collisions=False)
+    cast = sim.render_geometry(normals=False)
+    assert np.array_equal(cast.depth, f.depth) and np.array_equal(cast.instance, f["instance"])
+    finite = f.depth[np.isfinite(f.depth)]
+    assert finite.size and finite.min() >= doc["clip"]["near"] and finite.max() <= doc["clip"]["far"]
+
+
 def test_outputs_choose_what_is_written(flown, tmp_path):
     sim, seq, _ = flown
     traj = Trajectory(seq.poses[:2].copy(), seq.timestamps[:2].copy(), "test")

@@ -61,7 +61,9 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, o
         folder=out, kind=out.name, seed=seed, K=sim.K.copy(), width=sim.width, height=sim.height,
         poses=np.asarray(traj.poses), timestamps=np.asarray(traj.timestamps), labels=list(sim.labels),
         instances=sim.instance_table, parts=parts, dynamic_objects=sim.dynamic_objects, point_table=sim.point_table(),
-        modalities=names, options={"colmap_text": colmap_text, "plan": plan}, object_matrices=matrices,
+        modalities=names, object_matrices=matrices,
+        options={"colmap_text": colmap_text, "plan": plan, "ground_truth": sim.ground_truth,
+                 "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
         scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects))
     sinks = [factory(context) for factory in load_sinks().values()]
