@@ -11,8 +11,11 @@ import numpy as np
 
 from generator.geometry.camera import project
 
+from . import FORMAT_VERSION
 from .frames import frame_names
 from .sinks import FrameRecord, TrajectoryContext, register_sink
+
+PLY_FORMAT_COMMENT = "buildee format"  # points3D.ply's header comment, followed by the format version
 
 PREVIEW_FRAMES = 6  # rows of each trajectory's contact sheet
 UNCOLOURED = (128, 128, 128)  # COLMAP point colour when no rgb is written
@@ -83,7 +86,8 @@ class ColmapSink:
         write_ply(folder / POINTS_PLY, {"x": xyz[:, 0].astype(np.float32), "y": xyz[:, 1].astype(np.float32),
                                         "z": xyz[:, 2].astype(np.float32), "red": self.colors[keep, 0],
                                         "green": self.colors[keep, 1], "blue": self.colors[keep, 2]},
-                  comments=["the COLMAP model's 3D points (sparse/0), world metres, colour from the display PNG"])
+                  comments=[f"{PLY_FORMAT_COMMENT} {FORMAT_VERSION}",
+                            "the COLMAP model's 3D points (sparse/0), world metres, colour from the display PNG"])
 
 
 @register_sink("coverage")

@@ -14,7 +14,8 @@ from exporters.exr import read_frame_exr
 from exporters.ground_truth import POINT_PROPERTIES, GroundTruthError, read_ground_truth, read_mesh, read_points
 from exporters.nerfstudio import read_depth_png
 from exporters.palette import label_colors
-from exporters.ply import PlyError, read_ply, write_ply
+from exporters import FORMAT_VERSION
+from exporters.ply import PlyError, read_ply, read_ply_comments, write_ply
 from exporters.tracks import read_tracks
 from generator.geometry.o3d import import_open3d
 
@@ -50,6 +51,7 @@ def test_transforms_json_reproduces_the_poses(seed_folder, kind):
     cloud = import_open3d().io.read_point_cloud(str(folder / doc["ply_file_path"]))
     rec = pycolmap.Reconstruction(str(folder / "sparse" / "0"))
     assert len(cloud.points) == rec.num_points3D() > 0 and cloud.has_colors()
+    assert f"buildee format {FORMAT_VERSION}" in read_ply_comments(folder / doc["ply_file_path"])  # format.md
 
 
 def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
