@@ -137,8 +137,10 @@ def write_timeline_changes(folder: Path, stages: int, kinds: list[str]) -> dict:
         ia, ib = present[k - 1], present[k]
         status, transform = ch.classify_instances([a.parts[i] for i in ia], [b.parts[i] for i in ib],
                                                   tables[k - 1][ia], tables[k][ib], len(names))
-        xyz_a, xyz_b = clouds[k - 1].points, clouds[k].points
-        d_added, d_removed = ch.surface_distance(xyz_b, a.parts), ch.surface_distance(xyz_a, b.parts)
+        ca, cb = clouds[k - 1], clouds[k]
+        same = status == STATUS.index("unchanged")
+        d_added = ch.stage_distance(cb.points, same[tables[k][cb.vertex["instance"]]], a.parts)
+        d_removed = ch.stage_distance(ca.points, same[tables[k - 1][ca.vertex["instance"]]], b.parts)
         masks = {}
         for kind in kinds:
             ra, rb = FrameReader(phase_folder(folder, k - 1) / kind), FrameReader(phase_folder(folder, k) / kind)

@@ -92,20 +92,30 @@ def surface_distance(points: np.ndarray, parts: list, tolerance: float = POINT_T
     """(N,) float32 distance in metres from each point to the nearest triangle of ``parts``
     (placed at their matrices). Embree's float32 closest-point query (open3d) is too far by
     up to a few centimetres on long thin triangles (measured: 2.6 cm on a 43 m x 0.14 m face
-    of a crane jib), so distances in (tolerance, tolerance + REFINE] are recomputed on the
-    same surface cut into triangles with edges of at most MAX_EDGE metres, where that error
-    is gone (tests/test_phases.py checks the result against float64 point-to-triangle
-    distances)."""
+    of a crane jib; 7.9 mm for points lying on scaffolding tubes), so every distance up to
+    tolerance + REFINE is recomputed on the same surface cut into triangles with edges of at
+    most MAX_EDGE metres, where that error is gone (tests/test_phases.py checks the result
+    against float64 point-to-triangle distances)."""
     from ..geometry.raycast import SceneGeometry
 
     points = np.asarray(points, np.float64)
     if len(points) == 0:
         return np.zeros(0, np.float32)
     d = np.asarray(SceneGeometry(parts).distance(points), np.float64)
-    near = np.flatnonzero((d > tolerance) & (d <= tolerance + REFINE))
+    near = np.flatnonzero(d <= tolerance + REFINE)
     if len(near):
         d[near] = np.minimum(d[near], SceneGeometry(split_long_edges(parts)).distance(points[near]))
     return d.astype(np.float32)
+
+
+def stage_distance(points: np.ndarray, unchanged: np.ndarray, parts: list) -> np.ndarray:
+    """(N,) float32 distance in metres from each point of one stage to the other stage's
+    surface ``parts``: 0 for the points of objects ``unchanged`` (N,) bool between the two
+    stages (their triangles are in both, bit for bit), :func:`surface_distance` for the rest."""
+    d = np.zeros(len(points), np.float32)
+    rest = np.flatnonzero(~np.asarray(unchanged, bool))
+    d[rest] = surface_distance(np.asarray(points)[rest], parts)
+    return d
 
 
 def split_long_edges(parts: list, max_edge: float = MAX_EDGE) -> list:

@@ -140,9 +140,12 @@ def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], ma
                                          (-c - 0.02, 0, 0.012, 2 * c + 0.016), (c + 0.02, 0, 0.012, 2 * c + 0.016)):
                     rebar.box((sx_, sy_, 0.012), (x + dx, y + dy, zs), material="rebar")
             if boxed[a, b]:
-                panel_h, th = 2.7, 0.06
-                half = col / 2 + th / 2 + 0.01
-                for dx, dy, w in ((half, 0, (th, col + 2 * th + 0.02)), (-half, 0, (th, col + 2 * th + 0.02)),
+                # panels 2 cm off the column's faces: twice the timeline's point tolerance
+                # (changes.POINT_TOLERANCE), so the next floor's column faces, poured where the
+                # panels stood, are 'added' without a tie at the tolerance
+                panel_h, th, gap = 2.7, 0.06, 0.02
+                half = col / 2 + th / 2 + gap
+                for dx, dy, w in ((half, 0, (th, col + 2 * th + 2 * gap)), (-half, 0, (th, col + 2 * th + 2 * gap)),
                                   (0, half, (col, th)), (0, -half, (col, th))):
                     formwork.box((w[0], w[1], panel_h), (x + dx, y + dy, top_z + panel_h / 2), material="formwork")
     # a rebar mat being laid on part of the top slab: bars every 0.2 m both ways on chairs,
