@@ -77,6 +77,10 @@ def read_point_cloud(folder: str | Path, static_only: bool = False) -> dict:
 
     path = Path(folder) / "ground_truth" / "points.ply"
     if not path.is_file():
+        manifest = read_manifest(Path(folder)) if Path(folder).is_dir() else None
+        if manifest is not None and stage_count(manifest) > 1:
+            raise DatasetError(f"{folder}: a timeline seed of {stage_count(manifest)} stages (--phases): each stage "
+                               f"has its cloud; read one with read_point_cloud('{Path(folder) / 'phase_0'}')")
         raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
     try:
         d = read_points(path.parent)

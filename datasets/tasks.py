@@ -47,6 +47,36 @@ def _to_tensor(sample: dict) -> dict:
     return out
 
 
+def _kinds(scenes: list[Scene], trajectories) -> list[list[str]]:
+    """Per scene, the trajectory kinds to use (default: all); an unknown kind is a DatasetError."""
+    if isinstance(trajectories, str):
+        trajectories = [trajectories]
+    out = []
+    for scene in scenes:
+        kinds = list(trajectories) if trajectories else list(scene.trajectories)
+        missing = [k for k in kinds if k not in scene.trajectories]
+        if missing:
+            raise DatasetError(f"{scene.path}: no trajectory {', '.join(map(repr, missing))} (has "
+                               f"{', '.join(scene.trajectories)})")
+        out.append(kinds)
+    return out
+
+
+def _keys(keys, scenes: list[Scene], kinds: list[list[str]]) -> tuple[str, ...] | None:
+    """The modality names to read (one name or several; None: every stored one), each checked
+    against what every chosen trajectory stores, here rather than in a DataLoader worker."""
+    if keys is None:
+        return None
+    keys = (keys,) if isinstance(keys, str) else tuple(keys)
+    for scene, names in zip(scenes, kinds):
+        for kind in names:
+            missing = [k for k in keys if k not in scene[kind].modalities]
+            if missing:
+                raise DatasetError(f"{scene.path / kind}: no modality {', '.join(missing)} (written: "
+                                   f"{', '.join(scene[kind].modalities)})")
+    return keys
+
+
 class _Base:
     def __init__(self, transform: Callable | None, as_tensor: bool):
         self.transform, self.as_tensor = transform, as_tensor
@@ -71,10 +101,11 @@ class FrameDataset(_Base):
                  as_tensor: bool = False, keys: tuple[str, ...] | None = None, annotations: bool = False):
         super().__init__(transform, as_tensor)
         self.scenes = _scenes(paths)
-        self.keys, self.annotations = keys, annotations
+        kinds = _kinds(self.scenes, trajectories)
+        self.keys, self.annotations = _keys(keys, self.scenes, kinds), annotations
         self.index: list[tuple[int, str, int]] = []
         for s, scene in enumerate(self.scenes):
-            for kind in trajectories or scene.trajectories:
+            for kind in kinds[s]:
                 self.index += [(s, kind, i) for i in range(len(scene[kind]))]
 
     def __len__(self) -> int:
@@ -104,15 +135,20 @@ class ClipDataset(_Base):
                  transform: Callable | None = None, as_tensor: bool = False, max_points: int | None = None,
                  keys: tuple[str, ...] | None = None):
         super().__init__(transform, as_tensor)
-        self.keys = keys
         length, stride = check_integer("length", length, 1), check_integer("stride", stride, 1)
         _check_count("max_points", max_points)
         self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
+        kinds = _kinds(self.scenes, trajectories)
+        self.keys = _keys(keys, self.scenes, kinds)
         self.index: list[tuple[int, str, int]] = []
         span = (length - 1) * stride
         for s, scene in enumerate(self.scenes):
-            for kind in trajectories or scene.trajectories:
+            for kind in kinds[s]:
                 self.index += [(s, kind, i) for i in range(len(scene[kind]) - span)]
+        if not self.index:
+            longest = max(len(scene[kind]) for s, scene in enumerate(self.scenes) for kind in kinds[s])
+            raise DatasetError(f"a clip of length {length} with stride {stride} spans {span + 1} frames; the longest "
+                               f"trajectory has {longest}")
 
     def __len__(self) -> int:
         return len(self.index)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from .checks import check_number
+from .checks import MAX_COORDINATE, check_flag, check_number
 from .geometry import camera as cam_model
 
 
@@ -16,7 +16,11 @@ class CameraMoves:
 
     def _move(self, axis: int, distance: float) -> bool:
         d = check_number("distance", distance)
-        return self.set_world_from_camera(cam_model.translated_along_axis(self.get_world_from_camera(), axis, d))
+        target = cam_model.translated_along_axis(self.get_world_from_camera(), axis, d)
+        if abs(target[:3, 3]).max() > MAX_COORDINATE:
+            raise ValueError(f"distance {d:g} m would take the camera farther than {MAX_COORDINATE:.0e} m "
+                             "from the origin")
+        return self.set_world_from_camera(target)
 
     def move_camera_forward(self, distance: float) -> bool:
         """Move along the optical axis (camera +z) by ``distance`` metres; True if refused."""
@@ -34,5 +38,6 @@ class CameraMoves:
         """Turn right (clockwise seen from above) about the world Z axis through the camera
         centre; the horizon stays level. Never collides (returns False)."""
         a = check_number("angle", angle)
-        a = math.radians(a) if degrees else a
+        # whole turns first (exact: fmod), so that any finite angle turns as its remainder
+        a = math.radians(math.fmod(a, 360.0)) if check_flag("degrees", degrees) else math.fmod(a, 2 * math.pi)
         return self.set_world_from_camera(cam_model.turned_about_world_z(self.get_world_from_camera(), a), check_collisions=False)

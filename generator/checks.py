@@ -13,6 +13,8 @@ import math
 import numbers
 from typing import NoReturn
 
+import numpy as np
+
 
 def fail(name: str, valid: str, value) -> NoReturn:
     """Raise the one-line ValueError: '``name`` must be ``valid``, got ``value``'."""
@@ -57,6 +59,34 @@ def check_integer(name: str, value, low: int, high: int | None = None, *, valid:
         fail(name, valid or (f"an integer >= {low:,}" if high is None else f"an integer from {low:,} to {high:,}"),
              value)
     return int(value)
+
+
+MAX_FRAME = 1_048_574  # Blender's frame limit (MAXFRAME), either sign
+MAX_COORDINATE = 1e10  # metres; camera positions farther from the origin are refused
+
+
+class Checked:
+    """A settable attribute that runs ``check(value)`` (a one-line ValueError) on every
+    assignment, so that ``obj.name = bad`` fails where the constructor would, not later."""
+
+    def __init__(self, check):
+        self.check = check
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.slot = "_checked_" + name
+
+    def __get__(self, obj, objtype=None):
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj, value) -> None:
+        setattr(obj, self.slot, self.check(value))
+
+
+def check_flag(name: str, value) -> bool:
+    """``value`` as a bool if it is one (Python or numpy); else ValueError (no truthy strings)."""
+    if not isinstance(value, (bool, np.bool_)):
+        fail(name, "True or False", value)
+    return bool(value)
 
 
 MAX_SEED = 2**63 - 1  # seeds are stored as signed 64-bit integers (HDF5 attributes, numpy)

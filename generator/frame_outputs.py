@@ -9,6 +9,7 @@ import numpy as np
 
 from exporters.modalities import MODALITIES, resolve
 
+from .checks import check_integer
 from .geometry.pixels import PixelGeometry
 from .passes import RenderOutput
 
@@ -27,12 +28,31 @@ def pixel_geometry(sim, poses: np.ndarray | None = None, object_matrices: np.nda
     frame ``index`` of them."""
     if poses is None:
         poses, object_matrices, index = sim.get_world_from_camera()[None], sim.dynamic_object_matrices()[None], 0
-    poses = np.asarray(poses, np.float64)
+    poses, object_matrices, index = check_trajectory(poses, object_matrices, index, len(sim.dynamic_objects))
     if not np.allclose(poses[index], sim.get_world_from_camera(), atol=1e-9):
         raise ValueError(f"poses[{index}] is not the Simulator's current pose")
     g = sim.render_geometry(normals=True)
     return PixelGeometry(sim.K, sim.width, sim.height, index, poses, g.depth, g.instance, g.normal,
                          dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices)
+
+
+def check_trajectory(poses, object_matrices, index, dynamic: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """``poses`` (T, 4, 4), ``object_matrices`` (T, D, 4, 4) for ``dynamic`` = D moving objects
+    and ``index`` in [0, T) as float64 arrays and an int; else a one-line ValueError."""
+    def array(name, value, shape):
+        try:
+            a = np.asarray(value, np.float64)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.ndim != len(shape) or any(w is not None and n != w for n, w in zip(a.shape, shape)):
+            words = " x ".join("T" if w is None else str(w) for w in shape)
+            got = "None" if value is None else f"shape {a.shape}" if a is not None else repr(value)[:60]
+            raise ValueError(f"{name} must be a ({words}) array (T frames), got {got}")
+        return a
+
+    poses = array("poses", poses, (None, 4, 4))
+    matrices = array("object_matrices", object_matrices, (len(poses), dynamic, 4, 4))
+    return poses, matrices, check_integer("index", index, 0, len(poses) - 1)
 
 
 def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int = 0) -> RenderOutput:

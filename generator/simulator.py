@@ -16,7 +16,7 @@ from .blender.extract import assign_pass_indices, dynamic_matrices, extract_part
 from .blender.objects import SceneError, check_names, filtered_parts, object_table  # noqa: F401 (SceneError is public)
 from .blender.render import RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
-from .checks import check_number, check_seed
+from .checks import MAX_FRAME, Checked, check_flag, check_integer, check_number, check_seed
 from .geometry import camera as cam_model
 from .geometry.collision import move_is_allowed, position_is_free
 from .geometry.observability import default_viewpoints, observable_mask
@@ -68,8 +68,16 @@ class Simulator(CameraMoves, PaperAPI):
         verbose: print what was found (points, labels) to stderr.
 
     The paper's names (``n_points``, ``camera_matrix``, ``set_camera_from_next_camera``...)
-    work too: docs/simulator-api.md.
+    work too: docs/simulator-api.md. Assigning ``max_pcl_depth``,
+    ``segmentation_sensitivity``, ``collision_radius``, ``ground_truth`` or
+    ``observed_points_mask`` later is checked as in the constructor.
     """
+
+    # settable after construction, checked at every assignment (one-line ValueError)
+    max_pcl_depth = Checked(lambda v: check_number("max_pcl_depth", v, 0, open_low=True, finite=False))
+    segmentation_sensitivity = Checked(lambda v: check_number("segmentation_sensitivity", v, 0, 1))
+    collision_radius = Checked(lambda v: check_number("collision_radius", v, 0))
+    ground_truth = Checked(check_ground_truth)
 
     def __init__(
         self,
@@ -88,14 +96,14 @@ class Simulator(CameraMoves, PaperAPI):
         verbose: bool = False,
     ):
         self.points_density = check_number("points_density", points_density, 0, open_low=True)
-        self.segmentation_sensitivity = check_number("segmentation_sensitivity", segmentation_sensitivity, 0, 1)
-        self.max_pcl_depth = check_number("max_pcl_depth", max_pcl_depth, 0, open_low=True, finite=False)
-        self.collision_radius = check_number("collision_radius", collision_radius, 0)
+        self.segmentation_sensitivity = segmentation_sensitivity
+        self.max_pcl_depth = max_pcl_depth
+        self.collision_radius = collision_radius
         self.seed = check_seed("seed", seed)
         self.blend_file = Path(blend_file)
         self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
         self.filter_object_names = check_names("filter_object_names", filter_object_names)
-        self.ground_truth = check_ground_truth(ground_truth)
+        self.ground_truth = ground_truth
         self.verbose = bool(verbose)
 
         session.open_blend(self.blend_file)
@@ -123,7 +131,7 @@ class Simulator(CameraMoves, PaperAPI):
                                    assign_pass_indices(self._parts, self.label_ids),
                                    labels_of_parts([p.label for p in self._parts], self.label_ids), self.label_ids)
         self.last_render_timings: dict[str, float] = {}  # seconds per stage of the last render()
-        self.observed_points_mask = np.zeros(len(self._points), dtype=bool)
+        self._observed = np.zeros(len(self._points), dtype=bool)
         self._observable: np.ndarray | None = None  # observable_points_mask, computed on first use
         self.last_visibility = VisibilityStats()
 
@@ -174,6 +182,20 @@ class Simulator(CameraMoves, PaperAPI):
         directly is not seen by the Simulator (use ``set_world_from_camera``)."""
         self._check_current()
         return self._camera
+
+    @property
+    def observed_points_mask(self) -> np.ndarray:
+        """(N,) bool: the point was visible in some ``compute_point_cloud`` call so far (within
+        ``max_pcl_depth``); assign an (N,) array of bools to set it (the paper resets it so)."""
+        return self._observed
+
+    @observed_points_mask.setter
+    def observed_points_mask(self, mask) -> None:
+        m = np.asarray(mask)
+        if m.shape != (len(self._points),) or m.dtype != bool:
+            raise ValueError(f"observed_points_mask must be an ({len(self._points)},) array of bools (one per "
+                             f"point), got {m.dtype} {m.shape}")
+        self._observed = m.copy()
 
     @property
     def point_instances(self) -> np.ndarray:
@@ -266,14 +288,14 @@ class Simulator(CameraMoves, PaperAPI):
             self.width, self.height, ViewLimits(self.clip_start, min(self.clip_end, limit)), self.last_visibility,
         )
         if update_mask:
-            self.observed_points_mask |= visible
+            self._observed |= visible
         if imshow:
             self.point_cloud_image = self.draw_point_cloud_image(visible)
         return pts.world, pts.labels, visible
 
     def reset_observations(self) -> None:
         """Forget the observation history (coverage back to 0)."""
-        self.observed_points_mask[:] = False
+        self._observed[:] = False
 
     def depth_to_world_points(self, depth: np.ndarray) -> np.ndarray:
         """Unproject a planar depth map (H, W) in metres from the current pose to world
@@ -284,8 +306,17 @@ class Simulator(CameraMoves, PaperAPI):
         return cam_model.depth_to_world_points(depth, self.K, self._world_from_camera)
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixel coordinates (N, 2) as (x, y) and planar depths (N,) of world points."""
-        return cam_model.project(np.asarray(points, dtype=np.float64), self._world_from_camera, self.K)
+        """World points (N, 3) in metres -> (pixel coordinates (N, 2) float64 as (x, y), with the
+        top-left pixel's centre at (0.5, 0.5); planar depths (N,) float64 in metres, <= 0
+        behind the camera) at the current pose. Occlusion and the image bounds are ignored."""
+        try:
+            p = np.asarray(points, dtype=np.float64)
+        except (TypeError, ValueError):
+            p = None
+        if p is None or p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"points must be an (N, 3) array of world coordinates in metres, got "
+                             f"{'shape ' + str(p.shape) if p is not None else repr(points)[:60]}")
+        return cam_model.project(p, self._world_from_camera, self.K)
 
     # ---- camera --------------------------------------------------------------------------
     def get_world_from_camera(self) -> np.ndarray:
@@ -295,22 +326,21 @@ class Simulator(CameraMoves, PaperAPI):
     def is_free(self, position) -> bool:
         """True if the camera sphere fits at ``position`` (3,) without touching geometry."""
         self._check_current()
-        return position_is_free(self._geometry, np.asarray(position, dtype=np.float64), self.collision_radius)
+        return position_is_free(self._geometry, position, self.collision_radius)
 
     def can_move(self, start, end) -> bool:
         """True if the camera sphere can travel in a straight line from ``start`` to ``end``
         (a camera that starts touching geometry may still move away to a free position:
         generator/geometry/collision.py ``move_is_allowed``)."""
         self._check_current()
-        return move_is_allowed(self._geometry, np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64),
-                               self.collision_radius)
+        return move_is_allowed(self._geometry, start, end, self.collision_radius)
 
     def set_world_from_camera(self, matrix, check_collisions: bool = True) -> bool:
         """Move the camera to a pose; returns True (and leaves the pose unchanged) if the
         straight move from the current position collides."""
         self._check_current()
         m = cam_model.validate_rigid(matrix)
-        if check_collisions and not self.can_move(self._world_from_camera[:3, 3], m[:3, 3]):
+        if check_flag("check_collisions", check_collisions) and not self.can_move(self._world_from_camera[:3, 3], m[:3, 3]):
             return True
         self._world_from_camera = m.copy()
         bcam.write_pose(m, self._camera)
@@ -331,7 +361,7 @@ class Simulator(CameraMoves, PaperAPI):
     def set_frame(self, frame: int) -> int:
         """Jump to animation ``frame``; dynamic objects and their points move there."""
         self._check_current()
-        self.frame = int(frame)
+        self.frame = check_integer("frame", frame, -MAX_FRAME, MAX_FRAME)
         session.set_frame(self.frame)
         self._geometry.set_matrices(dynamic_matrices(self._bindings))
         if self._occluders is not None:

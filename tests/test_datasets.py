@@ -300,3 +300,18 @@ def test_frame_keys_and_both_forms_of_compose(seed_folder):
         np.testing.assert_array_equal(value, as_list[key], err_msg=key)
     with pytest.raises(TypeError, match="Compose takes callables"):
         Compose([Crop(8, 4, 32, 24), "resize"])
+
+
+def test_dataset_arguments_are_checked_when_the_dataset_is_made(seed_folder):
+    """Keys, trajectories and clip lengths are checked at construction (in the main process,
+    not in a DataLoader worker at the first item); one key may be given as a string."""
+    with pytest.raises(DatasetError, match=r"orbit: no modality bogus \(written: rgb, "):
+        FrameDataset(seed_folder, keys=("depth", "bogus"))
+    with pytest.raises(DatasetError, match=r"no trajectory 'lawnmower' \(has orbit, spline\)$"):
+        FrameDataset(seed_folder, trajectories=["lawnmower"])
+    with pytest.raises(DatasetError, match=r"^a clip of length 5 with stride 1 spans 5 frames; the longest trajectory has 3$"):
+        ClipDataset(seed_folder, length=5)
+    with pytest.raises(DatasetError, match="no modality bogus"):
+        ClipDataset(seed_folder, keys=["bogus"])
+    one = FrameDataset(seed_folder, keys="depth", trajectories="spline")
+    assert len(one) == 3 and set(one[0]) & set(MODALITIES) == {"depth"} and one[0]["trajectory"] == "spline"

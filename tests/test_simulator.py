@@ -278,6 +278,53 @@ def test_moves_and_depth_limits_are_checked(walls):
     assert sim.compute_point_cloud(max_depth=math.inf)[2].any()  # math.inf: no depth limit
 
 
+def test_settings_assigned_later_and_frames_are_checked_too(walls):
+    """Assigning a setting after construction is checked as the constructor checks it, and
+    a bad frame, pose, point array or flag is refused in one line before anything changes."""
+    sim = Simulator(walls, points_density=1)
+    start, frame = sim.get_world_from_camera(), sim.frame
+    cases = [
+        (lambda: setattr(sim, "max_pcl_depth", math.nan), r"^max_pcl_depth must be a number > 0 \(inf allowed\), got nan$"),
+        (lambda: setattr(sim, "max_pcl_depth", -5), "^max_pcl_depth must be a number > 0"),
+        (lambda: setattr(sim, "max_pcl_depth", "x"), "^max_pcl_depth must be a number > 0"),
+        (lambda: setattr(sim, "segmentation_sensitivity", 2), r"^segmentation_sensitivity must be a number in \[0, 1\]"),
+        (lambda: setattr(sim, "collision_radius", -1), "^collision_radius must be"),
+        (lambda: setattr(sim, "ground_truth", "cycles"), "ground_truth"),
+        (lambda: setattr(sim, "observed_points_mask", np.zeros(5, bool)),
+         rf"^observed_points_mask must be an \({sim.num_points},\) array of bools"),
+        (lambda: sim.set_frame(1.5), "^frame must be an integer from -1,048,574 to 1,048,574, got 1.5$"),
+        (lambda: sim.set_frame("3"), "^frame must be an integer"),
+        (lambda: sim.set_frame(10**7), "^frame must be an integer"),
+        (lambda: sim.project(np.zeros(3)), r"^points must be an \(N, 3\) array of world coordinates in metres, got shape \(3,\)$"),
+        (lambda: sim.project(np.zeros((5, 2))), r"^points must be an \(N, 3\) array"),
+        (lambda: sim.set_world_from_camera("eye"), "^pose must be a 4x4 matrix of real numbers, got 'eye'$"),
+        (lambda: sim.is_free("a"), r"^position must be three numbers \(x, y, z\) in metres, got 'a'$"),
+        (lambda: sim.turn_camera_right(10, degrees="yes"), "^degrees must be True or False, got 'yes'$"),
+        (lambda: sim.set_world_from_camera(start, check_collisions="no"), "^check_collisions must be True or False"),
+        (lambda: sim.move_camera_forward(1e12), "^distance 1e\\+12 m would take the camera farther than 1e\\+10 m"),
+        (lambda: sim.render_outputs(["flow"], start[None], None, 0), r"^object_matrices must be a \(1 x 0 x 4 x 4\) array"),
+        (lambda: sim.render_outputs(["flow"], start[None], np.zeros((1, 0, 4, 4)), 1), "^index must be an integer from 0 to 0"),
+        (lambda: sim.render_outputs(["flow"], start, np.zeros((1, 0, 4, 4)), 0), r"^poses must be a \(T x 4 x 4\) array"),
+    ]
+    far = start.copy()
+    far[0, 3] = 1e12
+    cases.append((lambda: sim.set_world_from_camera(far, check_collisions=False), "farther than 1e\\+10 m from the origin"))
+    for call, message in cases:
+        with pytest.raises(ValueError, match=message):
+            call()
+    np.testing.assert_array_equal(sim.get_world_from_camera(), start)  # nothing moved
+    assert sim.frame == frame and sim.max_pcl_depth == math.inf and sim.collision_radius == 0.3
+    sim.max_pcl_depth = 1e-3  # a valid assignment takes effect
+    assert not sim.compute_point_cloud(update_mask=False)[2].any()
+    sim.max_pcl_depth = math.inf
+    assert sim.compute_point_cloud(update_mask=False)[2].any()
+    sim.observed_points_mask = np.ones(sim.num_points, bool)
+    assert sim.coverage == 1.0
+    # any finite angle turns by its remainder of whole turns
+    sim.turn_camera_right(1e300)
+    assert np.isfinite(sim.get_world_from_camera()).all()
+
+
 def test_non_rigid_pose_rejected(walls):
     sim = Simulator(walls, points_density=1)
     scaled = sim.get_world_from_camera()

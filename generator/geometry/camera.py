@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import MAX_COORDINATE
 from . import portable_math
 from .nearest_rotation import nearest_reflection, nearest_rotation
 
@@ -202,11 +203,16 @@ def blender_from_world_from_camera(world_from_camera: np.ndarray) -> np.ndarray:
 
 def validate_rigid(matrix: np.ndarray, tolerance: float = RIGID_TOLERANCE) -> np.ndarray:
     """Return ``matrix`` as a float64 4x4 rigid transform, or raise ValueError saying why not."""
-    m = np.asarray(matrix, dtype=np.float64)
+    try:
+        m = np.asarray(matrix, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"pose must be a 4x4 matrix of real numbers, got {matrix!r:.60}") from None
     if m.shape != (4, 4):
         raise ValueError(f"pose must be a 4x4 matrix, got shape {m.shape}")
     if not np.all(np.isfinite(m)):
         raise ValueError("pose contains NaN or inf")
+    if np.abs(m[:3, 3]).max() > MAX_COORDINATE:
+        raise ValueError(f"pose's camera centre {m[:3, 3].tolist()} is farther than {MAX_COORDINATE:.0e} m from the origin")
     if not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0], atol=tolerance):
         raise ValueError(f"pose's last row must be [0, 0, 0, 1], got {m[3].tolist()}")
     r = m[:3, :3]

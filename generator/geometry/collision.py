@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import MAX_COORDINATE
 from .portable_math import vector_norm
 from .raycast import SceneGeometry
 
-
-MAX_COORDINATE = 1e10  # metres; positions farther from the origin are refused
 _MAX_SAMPLES = 100_000  # first pass of a sweep; the bisection below keeps the test exact
 _LONG = 1000.0  # metres: longer moves are first clipped to the scene's bounds
 
