@@ -118,7 +118,12 @@ def test_a_bad_discrete_action_is_one_line(rooms):
                                              rf"turn_right\), got {re.escape(repr(bad))}$"):
             env.step(bad)
     assert env.step(np.int64(3))[4]["steps"] == 1  # numpy integers are actions too
+    with pytest.raises(ValueError, match=r"^reset\(\) takes no options, got \['x'\]; set the environment's keywords"):
+        env.reset(seed=0, options={"x": 1})
     env.close()
+    # an unknown keyword through gymnasium.make: the env's one line, not gymnasium's rewrapped TypeError
+    with pytest.raises(ValueError, match=r"^ExplorationEnv has no keyword 'colour'; its keywords are seeds, "):
+        gym.make(EXPLORATION_ID, blend_files=rooms[:1], colour="red")
 
 
 def test_check_env_on_a_made_env_then_the_env_still_works(rooms):
@@ -246,6 +251,14 @@ def test_procedural_site_is_built_once_cached_and_rebuilt_after_a_code_change(tm
         assert np.array_equal(obs3["depth"], obs["depth"])
         stamp = (folder / "site.blend").stat().st_mtime_ns
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".lock")) == ["small_seed4"]
+    # a damaged cached .blend is named, with the remedy
+    blend = folder / "site.blend"
+    blend.write_bytes(blend.read_bytes()[: blend.stat().st_size // 2])
+    env = gym.make(EXPLORATION_ID, **kw)
+    with pytest.raises(ValueError, match=rf"the cached site is damaged: delete {re.escape(str(folder))} and it is "
+                                         "rebuilt at the next reset$"):
+        env.reset(seed=1)
+    env.close()
 
 
 def test_site_code_key_follows_the_site_generator_sources(tmp_path):

@@ -15,7 +15,7 @@ from gymnasium.envs.registration import register, registry
 EXPLORATION_ID = "buildee/Exploration-v0"
 
 if EXPLORATION_ID not in registry:
-    register(id=EXPLORATION_ID, entry_point="generator.envs.exploration:ExplorationEnv",
+    register(id=EXPLORATION_ID, entry_point="generator.envs.exploration:make_env",
              vector_entry_point="generator.envs.vector:make_async")
 
 __all__ = ["EXPLORATION_ID"]

@@ -123,7 +123,16 @@ class ExplorationEnv(gym.Env):
             return
         Simulator = _simulator_class()
         self.sim = None  # Blender holds one scene: drop the old Simulator first
-        sim = Simulator(spec.blend, points_density=self.points_density, max_pcl_depth=self.max_depth, seed=spec.seed)
+        from ..blender.session import BlendFileError  # bpy is loaded by now
+
+        try:
+            sim = Simulator(spec.blend, points_density=self.points_density, max_pcl_depth=self.max_depth,
+                            seed=spec.seed)
+        except BlendFileError as exc:
+            if self._sources[index][0] != "seed":
+                raise
+            raise BlendFileError(f"{exc}; the cached site is damaged: delete {spec.blend.parent} and it is rebuilt "
+                                 "at the next reset") from None
         self._generation = _blender_generation()
         sim.configure_render(self.render_preset if self.rgb else None, resolution=(self.width, self.height))
         if len(sim.labels) > MAX_LABEL_ID + 1:
@@ -160,6 +169,9 @@ class ExplorationEnv(gym.Env):
 
     # ---- Gymnasium API ---------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if options:  # none are defined: a typo must not pass unnoticed
+            raise ValueError(f"reset() takes no options, got {sorted(options)}; set the environment's keywords "
+                             "when making it")
         super().reset(seed=seed)
         self._load(int(self.np_random.integers(self.num_scenes)))
         sim = self.sim
@@ -262,17 +274,34 @@ def _simulator_class():
 
 
 # ---- argument checks ----------------------------------------------------------------------
+def check_known(keywords: dict) -> list[inspect.Parameter]:
+    """``ExplorationEnv``'s parameters; an unknown name in ``keywords`` is a one-line ValueError
+    listing them."""
+    params = list(inspect.signature(ExplorationEnv).parameters.values())
+    unknown = [k for k in keywords if k not in {p.name for p in params}]
+    if unknown:
+        raise ValueError(f"ExplorationEnv has no keyword {unknown[0]!r}; its keywords are "
+                         f"{', '.join(p.name for p in params)}")
+    return params
+
+
+def make_env(**keywords) -> "ExplorationEnv":
+    """gymnasium's entry point: an unknown keyword raises the one-line ValueError of
+    :func:`check_known` (Python's TypeError would reach the user rewrapped by gymnasium)."""
+    check_known(keywords)
+    return ExplorationEnv(**keywords)
+
+
+make_env.metadata = ExplorationEnv.metadata  # gymnasium reads the render modes from its entry point
+
+
 def check_keywords(**keywords) -> dict:
     """``ExplorationEnv``'s keywords checked as its constructor checks them (it calls this), without
     building an environment: ``gymnasium.make_vec`` checks them here before starting workers.
     An unknown keyword or a bad value raises a one-line ValueError naming the keyword (a missing
     .blend: FileNotFoundError). Returns every keyword, defaults filled in, as the environment
     keeps it; ``seeds`` and ``blend_files`` become ``sources``, the list of scenes."""
-    params = list(inspect.signature(ExplorationEnv).parameters.values())
-    unknown = [k for k in keywords if k not in {p.name for p in params}]
-    if unknown:
-        raise ValueError(f"ExplorationEnv has no keyword {unknown[0]!r}; its keywords are "
-                         f"{', '.join(p.name for p in params)}")
+    params = check_known(keywords)
     kw = {p.name: p.default for p in params} | keywords
     from ..scene.site import PRESETS
 
