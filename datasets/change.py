@@ -17,7 +17,7 @@ import numpy as np
 
 from generator.checks import check_integer
 
-from .scene import DatasetError, Sequence, check_index, read_point_cloud
+from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_point_cloud
 from .tasks import _Base
 
 
@@ -48,7 +48,7 @@ class Timeline:
         """Stage ``stage``'s frames of trajectory ``kind`` (datasets.scene.Sequence)."""
         check_index(stage, self.stages, "stage")
         if kind not in self.trajectories:
-            raise KeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
+            raise MissingKeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
         if (stage, kind) not in self._sequences:
             self._sequences[stage, kind] = Sequence(self.path / f"phase_{stage}" / kind, self.labels)
         return self._sequences[stage, kind]

@@ -28,6 +28,14 @@ class DatasetError(ValueError):
     message names the file and says what to do)."""
 
 
+class MissingKeyError(KeyError):
+    """A KeyError whose message prints as written (a plain KeyError prints its repr, quotes and
+    escapes included)."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
 def _checked(call, *args, path=None):
     """``call(*args)``, with a damaged file reported as a :class:`DatasetError`."""
     try:
@@ -125,7 +133,7 @@ class Frame:
         if name in ("K", "pose", "timestamp", "index", "trajectory"):
             return getattr(self, name)
         read = f"{', '.join(self.outputs)} (modalities read)" if self.outputs else "no modalities (none read)"
-        raise KeyError(f"frame has no {name!r}; it holds {read} and K, pose, timestamp, index, trajectory")
+        raise MissingKeyError(f"frame has no {name!r}; it holds {read} and K, pose, timestamp, index, trajectory")
 
     def as_dict(self) -> dict:
         return dict(self.outputs) | {"K": self.K, "pose": self.pose, "timestamp": self.timestamp,
@@ -171,7 +179,7 @@ class Sequence:
         try:
             outputs = _checked(self._frames.read, i, keys)
         except KeyError as exc:
-            raise KeyError(exc.args[0]) from None
+            raise MissingKeyError(exc.args[0]) from None
         return Frame(outputs, self.K.copy(), self.poses[i].copy(), float(self.timestamps[i]), i, self.kind)
 
     def visible_tracks(self, t: int) -> dict:
@@ -248,7 +256,8 @@ class Scene:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         if not self.path.is_dir():
-            raise DatasetError(f"{self.path}: no such folder")
+            raise DatasetError(f"{self.path}: " + ("a file, not a seed folder; pass the folder that holds it"
+                                                   if self.path.exists() else "no such folder"))
         manifest = read_manifest(self.path)
         stage = timeline_stage(self.path) if manifest is None else None
         if stage is not None:
@@ -291,7 +300,7 @@ class Scene:
 
     def __getitem__(self, kind: str) -> Sequence:
         if kind not in self.trajectories:
-            raise KeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
+            raise MissingKeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
         if kind not in self._sequences:
             self._sequences[kind] = Sequence(self.path / kind, self.labels)
         return self._sequences[kind]

@@ -315,3 +315,10 @@ def test_dataset_arguments_are_checked_when_the_dataset_is_made(seed_folder):
         ClipDataset(seed_folder, keys=["bogus"])
     one = FrameDataset(seed_folder, keys="depth", trajectories="spline")
     assert len(one) == 3 and set(one[0]) & set(MODALITIES) == {"depth"} and one[0]["trajectory"] == "spline"
+    # KeyErrors print their message as written (a plain KeyError prints its repr), and a file
+    # given for a seed folder says so
+    with pytest.raises(KeyError) as err:
+        Scene(seed_folder)["bogus"]
+    assert str(err.value) == f"no trajectory 'bogus' in {seed_folder} (has orbit, spline)"
+    with pytest.raises(DatasetError, match="manifest.json: a file, not a seed folder; pass the folder that holds it$"):
+        Scene(seed_folder / "manifest.json")

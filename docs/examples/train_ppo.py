@@ -45,16 +45,18 @@ def make_env(seeds, cache_dir):
 
 
 def main() -> None:
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import SubprocVecEnv
-
-    p = argparse.ArgumentParser()
+    p = argparse.ArgumentParser(description="PPO on buildee/Exploration-v0 (needs stable-baselines3 and torch)")
     p.add_argument("--seeds", type=int, nargs="+", default=[0])
     p.add_argument("--envs", type=int, default=2)
     p.add_argument("--timesteps", type=int, default=200_000)
     p.add_argument("--cache-dir", type=Path, default=Path("/tmp/buildee-sites"))
     p.add_argument("--out", type=Path, default=Path("ppo_exploration.zip"))
     args = p.parse_args()
+    try:
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import SubprocVecEnv
+    except ImportError:
+        raise SystemExit("error: this example needs stable-baselines3 (and torch): pip install stable-baselines3")
     # each worker builds (or loads from --cache-dir) its sites at its first reset; a file lock in
     # the cache makes one worker build each site while the others wait for it
     venv = SubprocVecEnv([make_env(args.seeds, args.cache_dir) for _ in range(args.envs)], start_method="spawn")
