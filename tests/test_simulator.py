@@ -325,6 +325,13 @@ def test_settings_assigned_later_and_frames_are_checked_too(walls):
     assert np.isfinite(sim.get_world_from_camera()).all()
 
 
+def test_a_filter_name_the_scene_lacks_is_named_in_a_warning(walls):
+    with pytest.warns(UserWarning, match=r"^filter_object_names: .*walls.blend has no mesh object 'Fense'; nothing is "
+                                         r"filtered for it$"):
+        sim = Simulator(walls, points_density=1, filter_object_names=["Fense"])
+    assert sim.num_points > 0
+
+
 def test_non_rigid_pose_rejected(walls):
     sim = Simulator(walls, points_density=1)
     scaled = sim.get_world_from_camera()

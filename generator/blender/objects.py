@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -31,6 +32,11 @@ def object_table(extracted, filter_object_names: tuple[str, ...], instance_names
     labels as :func:`label_table` orders them."""
     if not extracted.parts:
         raise SceneError(f"{blend} has no render-visible mesh objects with faces")
+    known = {p.name.split("/")[0] for p in extracted.parts}
+    absent = [n for n in filter_object_names if n not in known]
+    if absent:  # a typo would filter nothing; the paper's scripts may name objects a scene lacks
+        warnings.warn(f"filter_object_names: {blend} has no mesh object {', '.join(map(repr, absent))}; nothing is "
+                      f"filtered for {'it' if len(absent) == 1 else 'them'}", stacklevel=3)
     parts, bindings = _without_objects(extracted.parts, extracted.bindings, filter_object_names)
     if not parts:
         raise SceneError(f"{blend}: filter_object_names leaves no mesh objects")
