@@ -146,9 +146,9 @@ class ClipDataset(_Base):
             for kind in kinds[s]:
                 self.index += [(s, kind, i) for i in range(len(scene[kind]) - span)]
         if not self.index:
-            longest = max(len(scene[kind]) for s, scene in enumerate(self.scenes) for kind in kinds[s])
+            longest = max((len(scene[kind]) for s, scene in enumerate(self.scenes) for kind in kinds[s]), default=0)
             raise DatasetError(f"a clip of length {length} with stride {stride} spans {span + 1} frames; the longest "
-                               f"trajectory has {longest}")
+                               f"trajectory has {longest}: use a shorter length or a smaller stride")
 
     def __len__(self) -> int:
         return len(self.index)

@@ -74,10 +74,12 @@ class FramesSink:
         self.compression = compression
         self.attributes = {"buildee/labels": json.dumps(list(context.labels))}
         self.frames, self.size = 0, (int(context.width), int(context.height))
-        self.clip = tuple(float(c) for c in context.clip)
-        # the Simulator's settings that decide how depth, labels and ids were made (frames.json)
-        self.ground_truth = str(context.options.get("ground_truth", "geometry"))
-        self.sensitivity = float(context.options.get("segmentation_sensitivity", 0.0))
+        # planar metres; an infinite limit is written as null (JSON has no infinity)
+        self.clip = tuple(float(c) if np.isfinite(c) else None for c in context.clip)
+        # the Simulator's settings that decide how depth, labels and ids were made (frames.json;
+        # None where the caller's context does not say)
+        self.ground_truth = context.options.get("ground_truth")
+        self.sensitivity = context.options.get("segmentation_sensitivity")
 
     def add_frame(self, frame: FrameRecord) -> None:
         i = frame.index
@@ -100,7 +102,7 @@ class FramesSink:
         (self.folder / INDEX_FILE).write_text(json.dumps(doc, indent=1))
 
 
-def describe(m: Modality, ground_truth: str = "geometry", segmentation_sensitivity: float = 0.0) -> dict:
+def describe(m: Modality, ground_truth: str | None = None, segmentation_sensitivity: float | None = None) -> dict:
     """A modality's entry in frames.json, as made with these Simulator settings."""
     files = ([frame_names(0)[0].replace("000000", "NNNNNN") + f" part {m.part}"] if m.part else []) + [
         png_name(p, 0).replace("000000", "NNNNNN") + (" (8-bit sRGB)" if k == "rgb8" else " (16-bit, id + 1, 0 = none)")

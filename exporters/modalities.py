@@ -131,17 +131,20 @@ def unregister_modality(name: str) -> None:
     MODALITIES.pop(name, None)
 
 
-def produced_by(m: Modality, ground_truth: str, segmentation_sensitivity: float) -> str:
+def produced_by(m: Modality, ground_truth: str | None, segmentation_sensitivity: float | None) -> str:
     """How modality ``m`` was made in a run with these Simulator settings (frames.json's
-    ``source``; docs/format.md, Per-frame modalities)."""
+    ``source``; docs/format.md, Per-frame modalities); None: the setting is not known."""
     cast = "geometry: the scene's triangles hit by the ray through the pixel centre"
     if m.source == "geometry" or (m.truth and ground_truth == "geometry"):
         how = cast
+    elif m.truth and ground_truth == "renderer":
+        how = ("renderer: Blender's passes (ground_truth='renderer'; the ray cast where the engine has no Object "
+               "Index pass)")
     elif m.truth:
-        how = "renderer: Blender's passes (ground_truth='renderer')"
+        return "render(): the Simulator's ground_truth source (not recorded)"
     else:
         return "renderer: Blender's render"
-    if m.name == "label" and segmentation_sensitivity > 0:
+    if m.name == "label" and segmentation_sensitivity:
         how += (f", -1 where Blender's Cryptomatte coverage of the label is below segmentation_sensitivity "
                 f"{segmentation_sensitivity:g}")
     return how

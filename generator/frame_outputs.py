@@ -38,7 +38,8 @@ def pixel_geometry(sim, poses: np.ndarray | None = None, object_matrices: np.nda
 
 def check_trajectory(poses, object_matrices, index, dynamic: int) -> tuple[np.ndarray, np.ndarray, int]:
     """``poses`` (T, 4, 4), ``object_matrices`` (T, D, 4, 4) for ``dynamic`` = D moving objects
-    and ``index`` in [0, T) as float64 arrays and an int; else a one-line ValueError."""
+    (None allowed when D = 0) and ``index`` in [0, T) as float64 arrays and an int; else a
+    one-line ValueError."""
     def array(name, value, shape):
         try:
             a = np.asarray(value, np.float64)
@@ -51,6 +52,8 @@ def check_trajectory(poses, object_matrices, index, dynamic: int) -> tuple[np.nd
         return a
 
     poses = array("poses", poses, (None, 4, 4))
+    if object_matrices is None and dynamic == 0:
+        object_matrices = np.zeros((len(poses), 0, 4, 4))  # nothing moves: no matrices to give
     matrices = array("object_matrices", object_matrices, (len(poses), dynamic, 4, 4))
     return poses, matrices, check_integer("index", index, 0, len(poses) - 1)
 

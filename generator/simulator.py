@@ -195,7 +195,8 @@ class Simulator(CameraMoves, PaperAPI):
         if m.shape != (len(self._points),) or m.dtype != bool:
             raise ValueError(f"observed_points_mask must be an ({len(self._points)},) array of bools (one per "
                              f"point), got {m.dtype} {m.shape}")
-        self._observed = m.copy()
+        # the caller's array itself when it is one (later observations show in it, as before)
+        self._observed = mask if isinstance(mask, np.ndarray) and mask.flags.writeable else m.copy()
 
     @property
     def point_instances(self) -> np.ndarray:
@@ -361,6 +362,8 @@ class Simulator(CameraMoves, PaperAPI):
     def set_frame(self, frame: int) -> int:
         """Jump to animation ``frame``; dynamic objects and their points move there."""
         self._check_current()
+        if isinstance(frame, (float, np.floating)) and float(frame).is_integer():
+            frame = int(frame)  # 3.0 is frame 3, as it always was; 1.5 is refused
         self.frame = check_integer("frame", frame, -MAX_FRAME, MAX_FRAME)
         session.set_frame(self.frame)
         self._geometry.set_matrices(dynamic_matrices(self._bindings))

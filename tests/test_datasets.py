@@ -309,7 +309,7 @@ def test_dataset_arguments_are_checked_when_the_dataset_is_made(seed_folder):
         FrameDataset(seed_folder, keys=("depth", "bogus"))
     with pytest.raises(DatasetError, match=r"no trajectory 'lawnmower' \(has orbit, spline\)$"):
         FrameDataset(seed_folder, trajectories=["lawnmower"])
-    with pytest.raises(DatasetError, match=r"^a clip of length 5 with stride 1 spans 5 frames; the longest trajectory has 3$"):
+    with pytest.raises(DatasetError, match=r"^a clip of length 5 with stride 1 spans 5 frames; the longest trajectory has 3: use a shorter length or a smaller stride$"):
         ClipDataset(seed_folder, length=5)
     with pytest.raises(DatasetError, match="no modality bogus"):
         ClipDataset(seed_folder, keys=["bogus"])

@@ -201,13 +201,14 @@ def test_point_labels_agree_with_an_independent_distance_check(timeline):
             exact = _exact_distances(xyz[check], other.parts, 0.2)
             wrong = (exact > TOL) != flags[check]
             assert (np.abs(exact[wrong] - TOL) < 1e-4).all(), (exact[wrong], flags[check][wrong])
-            # the stored distances are float64 distances up to 0.5 mm (docs/phases.md) wherever a
-            # tolerance up to 0.11 m could use them, including points on the other stage's surface
+            # the stored distances are float64 distances up to about 1 mm (docs/phases.md: Embree's
+            # float32 on needle triangles) wherever a tolerance up to 0.11 m could use them
             stored = pair.distance_added if cloud_stage == k else pair.distance_removed
-            band = np.flatnonzero(stored <= TOL + 0.1)
-            band = rng.choice(band, min(len(band), 300), replace=False)
+            band = np.flatnonzero((stored > 0) & (stored <= TOL + 0.1))  # 0: unchanged objects' points
+            assert len(band) > 300
+            band = rng.choice(band, 300, replace=False)
             exact = _exact_distances(xyz[band], other.parts, 0.2)
-            bad = np.abs(stored[band] - exact) >= 5e-4
+            bad = np.abs(stored[band] - exact) >= 1.5e-3
             assert not bad.any(), (stored[band][bad], exact[bad], xyz[band][bad])
             # no surface is built at the tolerance from the other stage's, where a flag is a coin
             # toss (formwork panels stood 1 cm off the columns poured into them: 27 and 26 points

@@ -302,7 +302,8 @@ def test_settings_assigned_later_and_frames_are_checked_too(walls):
         (lambda: sim.turn_camera_right(10, degrees="yes"), "^degrees must be True or False, got 'yes'$"),
         (lambda: sim.set_world_from_camera(start, check_collisions="no"), "^check_collisions must be True or False"),
         (lambda: sim.move_camera_forward(1e12), "^distance 1e\\+12 m would take the camera farther than 1e\\+10 m"),
-        (lambda: sim.render_outputs(["flow"], start[None], None, 0), r"^object_matrices must be a \(1 x 0 x 4 x 4\) array"),
+        (lambda: sim.render_outputs(["flow"], start[None], np.zeros((1, 2, 4, 4)), 0),
+         r"^object_matrices must be a \(1 x 0 x 4 x 4\) array \(T frames\), got shape \(1, 2, 4, 4\)$"),
         (lambda: sim.render_outputs(["flow"], start[None], np.zeros((1, 0, 4, 4)), 1), "^index must be an integer from 0 to 0"),
         (lambda: sim.render_outputs(["flow"], start, np.zeros((1, 0, 4, 4)), 0), r"^poses must be a \(T x 4 x 4\) array"),
     ]
@@ -318,8 +319,11 @@ def test_settings_assigned_later_and_frames_are_checked_too(walls):
     assert not sim.compute_point_cloud(update_mask=False)[2].any()
     sim.max_pcl_depth = math.inf
     assert sim.compute_point_cloud(update_mask=False)[2].any()
-    sim.observed_points_mask = np.ones(sim.num_points, bool)
-    assert sim.coverage == 1.0
+    mine = np.zeros(sim.num_points, bool)
+    sim.observed_points_mask = mine  # the paper's scripts keep their array and read it after each call
+    sim.compute_point_cloud()
+    assert mine.any() and sim.observed_points_mask is mine and sim.coverage == mine.mean()
+    assert np.isnan(sim.render_outputs(["flow"], start[None], None, 0)["flow"]).all()  # a still scene needs no matrices
     # any finite angle turns by its remainder of whole turns
     sim.turn_camera_right(1e300)
     assert np.isfinite(sim.get_world_from_camera()).all()

@@ -131,6 +131,7 @@ class ExplorationEnv(gym.Env):
         except BlendFileError as exc:
             if self._sources[index][0] != "seed":
                 raise
+            self._scenes.pop(index, None)  # the next reset looks at the cache again (and rebuilds it)
             raise BlendFileError(f"{exc}; the cached site is damaged: delete {spec.blend.parent} and it is rebuilt "
                                  "at the next reset") from None
         self._generation = _blender_generation()
