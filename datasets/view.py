@@ -7,15 +7,22 @@
 
 Open a recording with ``rerun seed0.rrd`` (desktop) or ``rerun --web-viewer seed0.rrd``
 (browser). What is logged, and the subsampling rule of large clouds: docs/viewer.md.
-Bad input: one line on stderr, exit code 2, no .rrd written.
+Bad input, or a spawned viewer that does not come up or take the recording: one line on stderr,
+exit code 2, no .rrd written. Ctrl-C: exit 130, SIGTERM: exit 143, one line, no .rrd (and no
+temporary file) left.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
+import signal
+import socket
 import sys
+import threading
+import time
 from pathlib import Path
 
 from exporters.manifest import seed_folder_containing
@@ -43,6 +50,18 @@ class ViewError(ValueError):
     """Bad input to the viewer (one line: what is wrong, what to do)."""
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: unwinds like Ctrl-C's KeyboardInterrupt (the .rrd's temporary file is removed)."""
+
+
+VIEWER_PORT = 9876      # the port rr.spawn starts the viewer on (and connects to)
+VIEWER_GRACE_S = 3.0    # how long to wait for the viewer's port after rr.spawn's own wait (about 6 s) ran out
+FLUSH_POLL_S = 1.0      # flush to the viewer in steps this long, checking between them that it is still there
+# the stream to a spawned viewer, held until the process ends: dropping a stream whose viewer never
+# came up makes Rerun wait for that viewer (5 s, or forever with a recording still buffered)
+_VIEWER_STREAMS: list = []
+
+
 def check_out(out: Path, seed: Path) -> None:
     """Refuse an output that is a folder, lies inside the seed folder, or cannot be written."""
     if out.suffix != ".rrd":
@@ -59,6 +78,90 @@ def check_out(out: Path, seed: Path) -> None:
         raise ViewError(f"--out {out}: its folder does not exist; create it first")
     if not os.access(out.parent, os.W_OK):
         raise ViewError(f"--out {out}: cannot write in {out.parent}; choose a writable folder")
+
+
+def partial_file(out: Path, pid: int) -> Path:
+    """The temporary file that process ``pid`` writes ``out`` to (datasets.viewer.common.recording_file)."""
+    return out.with_name(f".{out.name}.{pid}.partial")
+
+
+def stale_partials(out: Path) -> list[Path]:
+    """Temporary files of ``out`` (:func:`partial_file`) whose process is gone on this machine:
+    what a killed run left behind. The temporary file of a process that is still running is
+    never among them."""
+    pattern = re.compile(rf"\.{re.escape(out.name)}\.(\d+)\.partial")
+    stale = []
+    try:
+        entries = list(out.parent.iterdir())
+    except OSError:
+        return []
+    for entry in entries:
+        m = pattern.fullmatch(entry.name)
+        if m is None or int(m.group(1)) == os.getpid() or not entry.is_file() or entry.is_symlink():
+            continue
+        try:
+            os.kill(int(m.group(1)), 0)  # signal 0: only asks whether the process exists
+        except ProcessLookupError:
+            stale.append(entry)
+        except (OSError, OverflowError):  # alive but another user's (PermissionError), or not a pid: left alone
+            pass
+    return sorted(stale)
+
+
+def remove_stale_partials(out: Path) -> None:
+    for path in stale_partials(out):
+        try:
+            path.unlink()
+        except OSError:  # gone already, or not ours to remove: best effort
+            pass
+
+
+def viewer_listening(port: int = VIEWER_PORT) -> bool:
+    """Whether something accepts connections on 127.0.0.1:``port`` (where rr.spawn's viewer listens)."""
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=1.0):
+            return True
+    except OSError:
+        return False
+
+
+def wait_for_viewer(port: int = VIEWER_PORT, seconds: float = VIEWER_GRACE_S) -> bool:
+    deadline = time.monotonic() + seconds
+    while not viewer_listening(port):
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.2)
+    return True
+
+
+def display_named() -> str:
+    for name in ("DISPLAY", "WAYLAND_DISPLAY"):
+        if os.environ.get(name):
+            return f"{name}={os.environ[name]}"
+    return "the display"
+
+
+def spawn_advice() -> str:
+    return (f"check that {display_named()} is a running display, or write a file (--out seed.rrd) and open it "
+            "with `rerun seed.rrd` where there is one, or in a browser with `rerun --web-viewer seed.rrd`")
+
+
+def flush_to_viewer(rec, executable: Path, port: int = VIEWER_PORT) -> None:
+    """rec.flush() to the spawned viewer, in steps of FLUSH_POLL_S: Rerun's own flush can wait
+    forever on a viewer that went away (rerun-sdk 0.41), so between steps the viewer must still
+    listen on its port, and Ctrl-C and SIGTERM are handled."""
+    while True:
+        try:
+            rec.flush(timeout_sec=FLUSH_POLL_S)
+            return
+        except RuntimeError as exc:
+            reason = (str(exc).splitlines() or [exc.__class__.__name__])[0]
+            if "timed out" in reason.lower() and viewer_listening(port):
+                continue  # a large recording still on its way to a viewer that is there
+            if not viewer_listening(port):
+                reason = f"it no longer listens on port {port}"
+            raise ViewError(f"--spawn: the Rerun viewer {executable} did not take the recording ({reason}); "
+                            f"{spawn_advice()}") from None
 
 
 def has_display() -> bool:
@@ -126,18 +229,26 @@ def run(args) -> Path | None:
             import rerun as rr
 
             rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(scene))
-            rr.spawn(executable_path=str(executable), default_blueprint=layout, recording=rec)
+            _VIEWER_STREAMS.append(rec)
+            rr.spawn(port=VIEWER_PORT, executable_path=str(executable), default_blueprint=layout, recording=rec)
+            # the viewer listens before it opens its window: one that cannot (no X server at
+            # $DISPLAY) is gone by now, and Rerun would buffer the recording for it and wait forever
+            if not wait_for_viewer(VIEWER_PORT):
+                raise ViewError(f"--spawn: the Rerun viewer {executable} did not start (nothing listens on port "
+                                f"{VIEWER_PORT}); {spawn_advice()}")
             record_scene(rec, scene, kinds, args.max_points, progress)
-            try:
-                rec.flush()
-            except RuntimeError as exc:  # the viewer did not start (e.g. no X server at $DISPLAY) or went away
-                rec.disconnect()  # Rerun's own shutdown messages come before the error line
-                raise ViewError(f"--spawn: the Rerun viewer {executable} did not take the recording "
-                                f"({str(exc).splitlines()[0]}); check that the display works, or write a file "
-                                "(--out seed.rrd) and open it with `rerun seed.rrd`") from None
+            flush_to_viewer(rec, executable, VIEWER_PORT)
             return None
-        with recording_file(out, recording_id(scene), layout) as rec:
-            record_scene(rec, scene, kinds, args.max_points, progress)
+        remove_stale_partials(out)
+        try:
+            with recording_file(out, recording_id(scene), layout) as rec:
+                record_scene(rec, scene, kinds, args.max_points, progress)
+        except BaseException:  # also a signal that came while recording_file created the file, before its clean-up
+            try:
+                partial_file(out, os.getpid()).unlink(missing_ok=True)
+            except OSError:
+                pass
+            raise
     except DatasetError as exc:
         raise ViewError(str(exc)) from None
     except OSError as exc:
@@ -145,21 +256,52 @@ def run(args) -> Path | None:
     return out
 
 
+def terminate(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a second SIGTERM must not cut the clean-up short
+    raise Terminated
+
+
+def end_process(code: int) -> None:
+    """End the process now, without interpreter shutdown: after a failed --spawn, Rerun's exit
+    handler (and the stream's own clean-up) flushes to a viewer that is not there, and can wait
+    for it forever."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def main(argv=None) -> int:
+    args = parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()  # signal handlers can only be set there
+    if main_thread:
+        previous = signal.signal(signal.SIGTERM, terminate)
     try:
-        out = run(parse_args(argv))
+        out = run(args)
     except ViewError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        code = 2
     except OSError as exc:  # e.g. a folder on the way that this user may not look into
         print(f"error: {exc.filename or 'input'}: {exc.strerror or exc}; check the path and its permissions", file=sys.stderr)
-        return 2
+        code = 2
     except KeyboardInterrupt:
         print("error: interrupted; no recording was written", file=sys.stderr)
-        return 130
-    if out is not None:
-        print(out)
-    return 0
+        code = 130
+    except Terminated:
+        print("error: terminated (SIGTERM); no recording was written", file=sys.stderr)
+        code = 143
+    else:
+        if out is not None:
+            print(out)
+        return 0
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+    if args.spawn:
+        end_process(code)
+    return code
 
 
 if __name__ == "__main__":

@@ -1,15 +1,17 @@
 """The Rerun recording of the default seed (python -m datasets.view) read back with Rerun's
 own RRD reader (rerun.chunk.RrdReader): entities, frame timeline, poses, intrinsics, tracks,
 cloud size, class names and images equal what the seed's files hold (read with the
-exporters' readers); the CLI's errors, --spawn and tools/viewer_screenshot.py. Seeds made
-otherwise: test_view_seeds.py; evaluation --rrd: test_view_evaluation.py."""
+exporters' readers); the CLI's errors, Ctrl-C and SIGTERM, --spawn and tools/viewer_screenshot.py.
+Seeds made otherwise: test_view_seeds.py; evaluation --rrd: test_view_evaluation.py."""
 
 import math
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -174,6 +176,69 @@ def test_a_mesh_of_another_format_version_is_one_line_and_exit_2(seed_folder, tm
     assert f"{mesh}: ground-truth format 0.0, this reader reads {FORMAT_VERSION}" in r.stderr and not out.exists()
 
 
+# ---- Ctrl-C, SIGTERM and what killed runs left behind ---------------------------------------------
+
+# python -m datasets.view, stopped where the .rrd's temporary file is open and nothing is logged yet
+PAUSED_BEFORE_LOGGING = """
+import runpy, sys, time
+import datasets.viewer.seed as seed
+
+def paused(*args, **kw):
+    time.sleep(60)  # the test's signal comes here
+    raise SystemExit("error: no signal came")
+
+seed.record_scene = paused
+runpy.run_module("datasets.view", run_name="__main__", alter_sys=True)
+"""
+
+
+def dead_pid() -> int:
+    proc = subprocess.Popen(["true"])
+    proc.wait()  # reaped: no process has this id now (ids are not reused at once)
+    return proc.pid
+
+
+@pytest.mark.parametrize("sig, code, says", [(signal.SIGTERM, 143, "terminated (SIGTERM)"),
+                                             (signal.SIGINT, 130, "interrupted")])
+def test_a_signal_leaves_no_temporary_file(seed_folder, tmp_path, sig, code, says):
+    out = tmp_path / "x.rrd"
+    proc = subprocess.Popen([sys.executable, "-c", PAUSED_BEFORE_LOGGING, str(seed_folder), "--out", str(out)],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # not inherited ignored
+    try:
+        deadline = time.monotonic() + 30
+        while not list(tmp_path.glob(".x.rrd.*.partial")):  # the recording is being written
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no temporary file within 30 s"
+            time.sleep(0.02)
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == code, stderr[-2000:]
+    assert stderr == f"error: {says}; no recording was written\n" and stdout == ""
+    assert list(tmp_path.iterdir()) == []  # neither the .rrd nor its temporary file
+
+
+def test_a_run_removes_the_temporary_files_that_killed_runs_left(seed_folder, tmp_path):
+    """Only of its own --out, and only those whose process is gone: a running one's is left alone."""
+    live = subprocess.Popen(["sleep", "60"])
+    try:
+        gone = tmp_path / f".x.rrd.{dead_pid()}.partial"
+        running = tmp_path / f".x.rrd.{live.pid}.partial"
+        other = tmp_path / f".y.rrd.{dead_pid()}.partial"
+        for path in (gone, running, other):
+            path.write_bytes(b"half a recording")
+        r = view(seed_folder, "--out", tmp_path / "x.rrd", "--trajectory", "orbit", "--max-points", 100)
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted([running.name, other.name, "x.rrd"])
+    finally:
+        live.kill()
+        live.wait()
+
+
 # ---- what a seed holds and how Rerun shows it ---------------------------------------------------
 
 IMAGES = ("rgb", "rgb_linear", "depth", "label", "instance", "normal", "flow", "backward_flow")
@@ -253,13 +318,29 @@ def without_rerun_on_path() -> dict:
     return env
 
 
+def viewer_port_free() -> bool:
+    """rr.spawn starts no viewer when something listens on its port 9876 already (it connects to that)."""
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", 9876)) != 0
+
+
+@pytest.mark.skipif(not viewer_port_free(), reason="a Rerun viewer (or something else) listens on port 9876")
 def test_spawn_runs_the_viewer_beside_the_interpreter(seed_folder):
-    r = view(seed_folder, "--spawn", "--trajectory", "orbit", env=without_rerun_on_path(), timeout=180)
+    """The viewer finds no X server at $DISPLAY and exits: one line, exit 2, in seconds, found before
+    anything is logged (rerun-sdk 0.41 buffers a recording for a viewer that is gone, and its flush
+    can wait for it forever: it did with one stage of a small timeline seed)."""
+    start = time.monotonic()
+    r = view(seed_folder, "--spawn", "--trajectory", "orbit", env=without_rerun_on_path(), timeout=45)
     # the viewer of sys.executable's environment was started (PATH has none); it finds no X server
     assert "Failed to open connection to X server" in r.stderr
     viewer = Path(sys.executable).with_name("rerun")
-    assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.strip().splitlines()[-1].startswith(f"error: --spawn: the Rerun viewer {viewer} did not take")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stdout == ""
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and r.stderr.strip().splitlines()[-1] == errors[0]  # the last line, after Rerun's
+    assert errors[0].startswith(f"error: --spawn: the Rerun viewer {viewer} did not start")
+    assert f"DISPLAY={NO_X_SERVER}" in errors[0] and "--out seed.rrd" in errors[0]
+    assert "orbit frames" not in r.stderr  # no progress bar: nothing was logged for the missing viewer
+    assert time.monotonic() - start < 40
 
 
 def test_spawn_without_a_viewer_is_one_line_and_exit_2(seed_folder, tmp_path):
