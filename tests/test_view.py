@@ -180,8 +180,10 @@ def test_a_mesh_of_another_format_version_is_one_line_and_exit_2(seed_folder, tm
 
 # python -m datasets.view, stopped where the .rrd's temporary file is open and nothing is logged yet
 PAUSED_BEFORE_LOGGING = """
-import runpy, sys, time
+import runpy, signal, sys, time
 import datasets.viewer.seed as seed
+
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job inherits SIGINT ignored
 
 def paused(*args, **kw):
     time.sleep(60)  # the test's signal comes here
@@ -203,8 +205,7 @@ def dead_pid() -> int:
 def test_a_signal_leaves_no_temporary_file(seed_folder, tmp_path, sig, code, says):
     out = tmp_path / "x.rrd"
     proc = subprocess.Popen([sys.executable, "-c", PAUSED_BEFORE_LOGGING, str(seed_folder), "--out", str(out)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # not inherited ignored
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 30
         while not list(tmp_path.glob(".x.rrd.*.partial")):  # the recording is being written

@@ -229,7 +229,7 @@ def test_kernels_have_no_fused_multiply_add():
 
     import numba
 
-    from generator.geometry import exact_kernels
+    from generator.geometry import exact_kernels, near_distance
     from generator.geometry import point_block_kernels as kernels
     from generator.geometry.observability import visible_from
     from generator.geometry.point_block_kernels import omni_rays
@@ -246,8 +246,11 @@ def test_kernels_have_no_fused_multiply_add():
     exact_kernels.rows_times(np.ones((2, 3)), np.eye(3), np.empty((2, 3)))
     exact_kernels.batch_rows_times(np.ones((2, 3)), np.ones((2, 3, 3)), np.empty((2, 3)))
     SceneGeometry([ground]).cast_with_normals(np.zeros((2, 3)), np.array([[0, 0, -1.0], [0.1, 0, -1]]))  # plane_hits
+    near_distance.near_distances(np.zeros((2, 3)), np.eye(3)[None], 1.0)  # the timeline's exact distances
+    near_distance.point_triangle_sq(0.5, 0.5, 0.5, np.eye(3))
     for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays,
-                   exact_kernels.rows_times, exact_kernels.batch_rows_times, exact_kernels.plane_hits):
+                   exact_kernels.rows_times, exact_kernels.batch_rows_times, exact_kernels.plane_hits,
+                   near_distance.point_triangle_sq, near_distance.cell_pairs):
         if not kernel.signatures:
             kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))
         # numba shows no code of a function loaded from its disk cache: compile it afresh,

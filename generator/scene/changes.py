@@ -84,27 +84,31 @@ def classify_instances(parts_a: list, parts_b: list, union_a: np.ndarray, union_
     return status, transform
 
 
-REFINE = 0.1  # metres: Embree distances from the tolerance up to tolerance + REFINE are recomputed
-MAX_EDGE = 2.0  # metres: the recomputation splits longer triangle edges first
+REFINE = 0.1  # metres: distances up to the tolerance + REFINE are exact (float64)
+EMBREE_ERROR = 0.03  # metres: the most Embree's float32 distance is off by (measured: 2.6 cm, a crane jib's face)
 
 
 def surface_distance(points: np.ndarray, parts: list, tolerance: float = POINT_TOLERANCE) -> np.ndarray:
     """(N,) float32 distance in metres from each point to the nearest triangle of ``parts``
     (placed at their matrices). Embree's float32 closest-point query (open3d) is too far by
-    up to a few centimetres on long thin triangles (measured: 2.6 cm on a 43 m x 0.14 m face
-    of a crane jib; 7.9 mm for points lying on scaffolding tubes), so every distance up to
-    tolerance + REFINE is recomputed on the same surface cut into triangles with edges of at
-    most MAX_EDGE metres, where that error is gone (tests/test_phases.py checks the result
-    against float64 point-to-triangle distances)."""
+    up to a few centimetres on needle triangles (measured: 2.6 cm on a 43 m x 0.14 m face of a
+    crane jib, 8 mm for points on scaffold tubes), so every point it puts within tolerance +
+    REFINE + EMBREE_ERROR gets the exact float64 distance of
+    :func:`generator.geometry.near_distance.near_distances` instead (tests/test_phases.py
+    checks the result against an independent float64 point-to-triangle distance)."""
+    from ..geometry.near_distance import near_distances
     from ..geometry.raycast import SceneGeometry
 
     points = np.asarray(points, np.float64)
     if len(points) == 0:
         return np.zeros(0, np.float32)
     d = np.asarray(SceneGeometry(parts).distance(points), np.float64)
-    near = np.flatnonzero(d <= tolerance + REFINE)
+    reach = tolerance + REFINE + EMBREE_ERROR
+    near = np.flatnonzero(d <= reach)
     if len(near):
-        d[near] = np.minimum(d[near], SceneGeometry(split_long_edges(parts)).distance(points[near]))
+        tri = [p.world_vertices()[p.faces] for p in parts if len(p.faces)]
+        exact = near_distances(points[near], np.concatenate(tri), reach + EMBREE_ERROR)
+        d[near] = np.where(exact <= reach + EMBREE_ERROR, exact, d[near])
     return d.astype(np.float32)
 
 
@@ -116,34 +120,6 @@ def stage_distance(points: np.ndarray, unchanged: np.ndarray, parts: list) -> np
     rest = np.flatnonzero(~np.asarray(unchanged, bool))
     d[rest] = surface_distance(np.asarray(points)[rest], parts)
     return d
-
-
-def split_long_edges(parts: list, max_edge: float = MAX_EDGE) -> list:
-    """The parts' world triangles as static parts, each triangle bisected at the midpoint of
-    its longest edge until no edge is longer than ``max_edge`` metres (the same surface)."""
-    from ..geometry.parts import MeshPart
-
-    out = []
-    for p in parts:
-        if not len(p.faces):
-            continue
-        tri = p.world_vertices()[p.faces]
-        done = []
-        while len(tri):
-            edges = np.stack([np.linalg.norm(tri[:, (i + 1) % 3] - tri[:, i], axis=1) for i in range(3)], axis=1)
-            long = edges.max(axis=1) > max_edge
-            done.append(tri[~long])
-            tri = tri[long]
-            if not len(tri):
-                break
-            i = edges[long].argmax(axis=1)  # split edge (i, i+1) at its midpoint m: (a, m, c) and (m, b, c)
-            rows = np.arange(len(tri))
-            a, b, c = tri[rows, i], tri[rows, (i + 1) % 3], tri[rows, (i + 2) % 3]
-            m = (a + b) / 2
-            tri = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
-        tri = np.concatenate(done)
-        out.append(MeshPart(p.name, p.label, tri.reshape(-1, 3), np.arange(3 * len(tri)).reshape(-1, 3)))
-    return out
 
 
 def frame_change_mask(depth_a: np.ndarray, union_a: np.ndarray, depth_b: np.ndarray, union_b: np.ndarray,

@@ -1,0 +1,146 @@
+"""Exact float64 distances from points to the triangles within a radius of them (numba,
+compiled once and cached on disk).
+
+Embree's closest-point query (open3d) computes in float32, which on needle triangles (a
+scaffold tube's 15 m x 1.5 cm faces, a crane jib's) is off by millimetres to centimetres.
+Where a distance must be exact (the timeline's added / removed points, generator/scene/
+changes.py), :func:`near_distances` takes every triangle whose box, grown by ``radius``,
+meets the grid cell of a point, and keeps the smallest float64 point-to-triangle distance
+(Ericson's closest point on a triangle, "Real-Time Collision Detection" 5.1.5). Triangles
+farther than ``radius`` may be among the candidates; no triangle within ``radius`` is
+missed, so a finite answer <= ``radius`` is the exact distance to the whole surface.
+
+Only IEEE float64 multiplies, adds, compares and one square root, in a fixed order, without
+``fastmath``: the same bits on every CPU (tests/test_visibility.py checks the compiled code
+for fused multiply-adds).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+_SPAN = 1 << 20  # cells per axis that a key holds (21 bits each, offset to be non-negative)
+
+
+@numba.njit(cache=True, nogil=True)
+def _dot(ax, ay, az, bx, by, bz):
+    return (ax * bx + ay * by) + az * bz
+
+
+@numba.njit(cache=True, nogil=True)
+def point_triangle_sq(px, py, pz, tri):
+    """Squared float64 distance from point p to the triangle ``tri`` (3, 3)."""
+    ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
+    abx, aby, abz = tri[1, 0] - ax, tri[1, 1] - ay, tri[1, 2] - az
+    acx, acy, acz = tri[2, 0] - ax, tri[2, 1] - ay, tri[2, 2] - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1, d2 = _dot(abx, aby, abz, apx, apy, apz), _dot(acx, acy, acz, apx, apy, apz)
+    if d1 <= 0.0 and d2 <= 0.0:  # vertex a
+        return _dot(apx, apy, apz, apx, apy, apz)
+    bpx, bpy, bpz = px - tri[1, 0], py - tri[1, 1], pz - tri[1, 2]
+    d3, d4 = _dot(abx, aby, abz, bpx, bpy, bpz), _dot(acx, acy, acz, bpx, bpy, bpz)
+    if d3 >= 0.0 and d4 <= d3:  # vertex b
+        return _dot(bpx, bpy, bpz, bpx, bpy, bpz)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:  # edge ab
+        v = d1 / (d1 - d3)
+        qx, qy, qz = apx - v * abx, apy - v * aby, apz - v * abz
+        return _dot(qx, qy, qz, qx, qy, qz)
+    cpx, cpy, cpz = px - tri[2, 0], py - tri[2, 1], pz - tri[2, 2]
+    d5, d6 = _dot(abx, aby, abz, cpx, cpy, cpz), _dot(acx, acy, acz, cpx, cpy, cpz)
+    if d6 >= 0.0 and d5 <= d6:  # vertex c
+        return _dot(cpx, cpy, cpz, cpx, cpy, cpz)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:  # edge ac
+        w = d2 / (d2 - d6)
+        qx, qy, qz = apx - w * acx, apy - w * acy, apz - w * acz
+        return _dot(qx, qy, qz, qx, qy, qz)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:  # edge bc
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        bcx, bcy, bcz = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
+        qx, qy, qz = bpx - w * bcx, bpy - w * bcy, bpz - w * bcz
+        return _dot(qx, qy, qz, qx, qy, qz)
+    denom = (va + vb) + vc
+    if not denom > 0.0:  # a degenerate triangle (no area): its edges hold its points
+        best = math.inf
+        for i in range(3):
+            j = (i + 1) % 3
+            ex, ey, ez = tri[j, 0] - tri[i, 0], tri[j, 1] - tri[i, 1], tri[j, 2] - tri[i, 2]
+            qx, qy, qz = px - tri[i, 0], py - tri[i, 1], pz - tri[i, 2]
+            ee = _dot(ex, ey, ez, ex, ey, ez)
+            s = 0.0 if ee == 0.0 else min(max(_dot(qx, qy, qz, ex, ey, ez) / ee, 0.0), 1.0)
+            rx, ry, rz = qx - s * ex, qy - s * ey, qz - s * ez
+            best = min(best, _dot(rx, ry, rz, rx, ry, rz))
+        return best
+    v, w = vb / denom, vc / denom  # inside the face: p - (a + v ab + w ac)
+    qx, qy, qz = apx - (v * abx + w * acx), apy - (v * aby + w * acy), apz - (v * abz + w * acz)
+    return _dot(qx, qy, qz, qx, qy, qz)
+
+
+@numba.njit(cache=True, nogil=True)
+def _key(ix, iy, iz):
+    return ((ix + _SPAN) * (2 * _SPAN) + (iy + _SPAN)) * (2 * _SPAN) + (iz + _SPAN)
+
+
+@numba.njit(cache=True, nogil=True)
+def cell_pairs(tri, lo, hi, cell, cells, fill, counts, members):
+    """For each triangle, each grid cell of ``cells`` (sorted keys) that its box [lo, hi]
+    meets: count it (``fill`` False) or write the triangle into ``members`` (True)."""
+    for t in range(len(tri)):
+        i0, i1 = math.floor(lo[t, 0] / cell), math.floor(hi[t, 0] / cell)
+        j0, j1 = math.floor(lo[t, 1] / cell), math.floor(hi[t, 1] / cell)
+        k0, k1 = math.floor(lo[t, 2] / cell), math.floor(hi[t, 2] / cell)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    key = _key(i, j, k)
+                    c = np.searchsorted(cells, key)
+                    if c < len(cells) and cells[c] == key:
+                        if fill:
+                            members[counts[c]] = t
+                        counts[c] += 1
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def nearest_in_cells(points, point_cell, start, members, tri, out):
+    for p in numba.prange(len(points)):  # each point on its own: the same answer on any thread count
+        c = point_cell[p]
+        best = math.inf
+        for m in range(start[c], start[c + 1]):
+            best = min(best, point_triangle_sq(points[p, 0], points[p, 1], points[p, 2], tri[members[m]]))
+        out[p] = math.sqrt(best)
+
+
+def near_distances(points: np.ndarray, triangles: np.ndarray, radius: float) -> np.ndarray:
+    """(N,) float64: the exact distance in metres from each point (N, 3) to the nearest of
+    ``triangles`` (T, 3, 3) when some triangle lies within ``radius`` metres of it; otherwise
+    a distance > ``radius`` (to some triangle) or inf (see the module's docstring)."""
+    p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    tri = np.ascontiguousarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    out = np.full(len(p), np.inf)
+    if len(p) == 0 or len(tri) == 0:
+        return out
+    # cells about the radius across (fewer candidates per cell), grown where coordinates are
+    # so large that the keys would not hold them
+    extent = max(float(np.abs(p).max()), float(np.abs(tri).max()) + radius)
+    cell = max(float(radius), extent / (_SPAN - 2), 1e-9)
+    point_keys = _keys_of(np.floor(p / cell).astype(np.int64))
+    cells, point_cell = np.unique(point_keys, return_inverse=True)
+    lo, hi = tri.min(axis=1) - radius, tri.max(axis=1) + radius
+    counts = np.zeros(len(cells), np.int64)
+    cell_pairs(tri, lo, hi, cell, cells, False, counts, np.zeros(0, np.int64))
+    start = np.zeros(len(cells) + 1, np.int64)
+    np.cumsum(counts, out=start[1:])
+    members = np.empty(start[-1], np.int64)
+    cursor = start[:-1].copy()
+    cell_pairs(tri, lo, hi, cell, cells, True, cursor, members)
+    nearest_in_cells(p, point_cell.reshape(-1).astype(np.int64), start, members, tri, out)
+    return out
+
+
+def _keys_of(ijk: np.ndarray) -> np.ndarray:
+    return ((ijk[:, 0] + _SPAN) * (2 * _SPAN) + (ijk[:, 1] + _SPAN)) * (2 * _SPAN) + (ijk[:, 2] + _SPAN)

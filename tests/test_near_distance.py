@@ -1,0 +1,40 @@
+"""Exact float64 distances to the triangles near a point (generator/geometry/near_distance.py),
+against an independent numpy twin (tests/distance_reference.py), needle triangles included."""
+
+import numpy as np
+from distance_reference import exact_distance
+
+from generator.geometry.near_distance import near_distances
+
+
+def test_exact_distances_on_needles_degenerate_triangles_and_far_points():
+    rng = np.random.default_rng(0)
+    tri = rng.normal(size=(300, 3, 3))
+    tri[:50, 2] = tri[:50, 0] + (tri[:50, 1] - tri[:50, 0]) * 0.5 + 1e-3 * rng.normal(size=(50, 3))  # needles
+    tri[50:55, 2] = tri[50:55, 0]  # no area: a segment
+    points = rng.normal(size=(1000, 3)) * 1.5
+    reference = np.array([exact_distance(p, tri) for p in points])
+    got = near_distances(points, tri, 10.0)
+    np.testing.assert_allclose(got, reference, rtol=0, atol=1e-12)
+    # with a small radius: exact wherever some triangle is that near, never a false "near"
+    small = near_distances(points, tri, 0.05)
+    near = reference <= 0.05
+    assert near.sum() > 20
+    np.testing.assert_allclose(small[near], reference[near], rtol=0, atol=1e-12)
+    assert (small[~near] > 0.05).all()
+    # the same bits however the points are ordered (each point is its own computation)
+    order = rng.permutation(len(points))
+    assert np.array_equal(near_distances(points[order], tri, 0.05), small[order])
+
+
+def test_a_point_on_a_scaffold_tube_is_at_distance_zero():
+    """Points lying on a 14.7 m x 1.5 cm face (a scaffold tube's), 10 m from the origin, among
+    the tube's other faces: their distance is their float64 round-off."""
+    a, b = np.array([10.0, 3.0, 1.0]), np.array([10.0, 3.0, 15.7])
+    turn = [np.array([np.cos(k * np.pi / 4), np.sin(k * np.pi / 4), 0.0]) * 0.024 for k in range(9)]
+    faces = [[a + turn[k], b + turn[k], a + turn[k + 1]] for k in range(8)]
+    faces += [[b + turn[k], b + turn[k + 1], a + turn[k + 1]] for k in range(8)]
+    tri = np.array(faces)
+    w = np.random.default_rng(1).dirichlet([1, 1, 1], 2000)
+    points = np.einsum("nk,kj->nj", w, tri[0])
+    assert near_distances(points, tri, 0.1).max() < 1e-12
