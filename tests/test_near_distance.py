@@ -27,6 +27,18 @@ def test_exact_distances_on_needles_degenerate_triangles_and_far_points():
     assert np.array_equal(near_distances(points[order], tri, 0.05), small[order])
 
 
+def test_triangles_with_no_area_are_their_edges():
+    """Collinear corners (c before a, between a and b, beyond b, on a or b): the cross product is
+    round-off, not 0, and the point's region is decided by noise; the answer is the segment's."""
+    rng = np.random.default_rng(2)
+    a, b = rng.normal(size=(20, 3)), rng.normal(size=(20, 3))
+    for f in (-0.5, 0.0, 0.3, 1.0, 1.7):
+        tri = np.stack([a, b, a + f * (b - a)], axis=1)
+        points = rng.normal(size=(300, 3))
+        reference = np.array([exact_distance(p, tri) for p in points])
+        np.testing.assert_allclose(near_distances(points, tri, 10.0), reference, rtol=0, atol=1e-12)
+
+
 def test_a_point_on_a_scaffold_tube_is_at_distance_zero():
     """Points lying on a 14.7 m x 1.5 cm face (a scaffold tube's), 10 m from the origin, among
     the tube's other faces: their distance is their float64 round-off."""

@@ -31,11 +31,37 @@ def _dot(ax, ay, az, bx, by, bz):
 
 
 @numba.njit(cache=True, nogil=True)
+def _off_sq(qx, qy, qz, s, ex, ey, ez):
+    """|q - s e|^2: the squared distance from p to the point at s along an edge e, q = p - start."""
+    rx, ry, rz = qx - s * ex, qy - s * ey, qz - s * ez
+    return _dot(rx, ry, rz, rx, ry, rz)
+
+
+@numba.njit(cache=True, nogil=True)
+def _edges_sq(px, py, pz, tri):
+    """Squared distance from p to the nearest of the triangle's three edges (segments)."""
+    best = math.inf
+    for i in range(3):
+        j = (i + 1) % 3
+        ex, ey, ez = tri[j, 0] - tri[i, 0], tri[j, 1] - tri[i, 1], tri[j, 2] - tri[i, 2]
+        qx, qy, qz = px - tri[i, 0], py - tri[i, 1], pz - tri[i, 2]
+        ee = _dot(ex, ey, ez, ex, ey, ez)
+        s = 0.0 if ee == 0.0 else min(max(_dot(qx, qy, qz, ex, ey, ez) / ee, 0.0), 1.0)
+        best = min(best, _off_sq(qx, qy, qz, s, ex, ey, ez))
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
 def point_triangle_sq(px, py, pz, tri):
     """Squared float64 distance from point p to the triangle ``tri`` (3, 3)."""
     ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
     abx, aby, abz = tri[1, 0] - ax, tri[1, 1] - ay, tri[1, 2] - az
     acx, acy, acz = tri[2, 0] - ax, tri[2, 1] - ay, tri[2, 2] - az
+    nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+    # no area to round-off (sin of the angle at a below 1e-12: a segment or a point), where the
+    # regions below are decided by noise: its edges hold it, to 1e-12 of its size
+    if _dot(nx, ny, nz, nx, ny, nz) <= 1e-24 * (_dot(abx, aby, abz, abx, aby, abz) * _dot(acx, acy, acz, acx, acy, acz)):
+        return _edges_sq(px, py, pz, tri)
     apx, apy, apz = px - ax, py - ay, pz - az
     d1, d2 = _dot(abx, aby, abz, apx, apy, apz), _dot(acx, acy, acz, apx, apy, apz)
     if d1 <= 0.0 and d2 <= 0.0:  # vertex a
@@ -46,36 +72,22 @@ def point_triangle_sq(px, py, pz, tri):
         return _dot(bpx, bpy, bpz, bpx, bpy, bpz)
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:  # edge ab
-        v = d1 / (d1 - d3)
-        qx, qy, qz = apx - v * abx, apy - v * aby, apz - v * abz
-        return _dot(qx, qy, qz, qx, qy, qz)
+        return _off_sq(apx, apy, apz, d1 / (d1 - d3), abx, aby, abz)
     cpx, cpy, cpz = px - tri[2, 0], py - tri[2, 1], pz - tri[2, 2]
     d5, d6 = _dot(abx, aby, abz, cpx, cpy, cpz), _dot(acx, acy, acz, cpx, cpy, cpz)
     if d6 >= 0.0 and d5 <= d6:  # vertex c
         return _dot(cpx, cpy, cpz, cpx, cpy, cpz)
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:  # edge ac
-        w = d2 / (d2 - d6)
-        qx, qy, qz = apx - w * acx, apy - w * acy, apz - w * acz
-        return _dot(qx, qy, qz, qx, qy, qz)
+        return _off_sq(apx, apy, apz, d2 / (d2 - d6), acx, acy, acz)
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:  # edge bc
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         bcx, bcy, bcz = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
-        qx, qy, qz = bpx - w * bcx, bpy - w * bcy, bpz - w * bcz
-        return _dot(qx, qy, qz, qx, qy, qz)
+        return _off_sq(bpx, bpy, bpz, w, bcx, bcy, bcz)
     denom = (va + vb) + vc
-    if not denom > 0.0:  # a degenerate triangle (no area): its edges hold its points
-        best = math.inf
-        for i in range(3):
-            j = (i + 1) % 3
-            ex, ey, ez = tri[j, 0] - tri[i, 0], tri[j, 1] - tri[i, 1], tri[j, 2] - tri[i, 2]
-            qx, qy, qz = px - tri[i, 0], py - tri[i, 1], pz - tri[i, 2]
-            ee = _dot(ex, ey, ez, ex, ey, ez)
-            s = 0.0 if ee == 0.0 else min(max(_dot(qx, qy, qz, ex, ey, ez) / ee, 0.0), 1.0)
-            rx, ry, rz = qx - s * ex, qy - s * ey, qz - s * ez
-            best = min(best, _dot(rx, ry, rz, rx, ry, rz))
-        return best
+    if not denom > 0.0:  # round-off on a sliver of almost no area: its edges hold it
+        return _edges_sq(px, py, pz, tri)
     v, w = vb / denom, vc / denom  # inside the face: p - (a + v ab + w ac)
     qx, qy, qz = apx - (v * abx + w * acx), apy - (v * aby + w * acy), apz - (v * abz + w * acz)
     return _dot(qx, qy, qz, qx, qy, qz)
