@@ -96,9 +96,13 @@ def site_area_lower_bound(preset: str) -> float:
 
 
 def check_point_budget(cfg: RunConfig, surface_points: int) -> None:
-    """After the site is built, before rendering: ValueError if ``cfg.scoring_density`` would
-    make a ground-truth cloud over MAX_SCORING_POINTS. The site's surface area is estimated
-    from its simulator points (``surface_points`` at ``cfg.points_density`` per m^2)."""
+    """After the site is built, before rendering: ValueError if the site has more than
+    MAX_SURFACE_POINTS simulator points (``surface_points``, at ``cfg.points_density`` per
+    m^2), or if ``cfg.scoring_density`` would make a ground-truth cloud over
+    MAX_SCORING_POINTS (the site's surface area estimated from its simulator points)."""
+    if surface_points > MAX_SURFACE_POINTS:
+        raise ValueError(f"--points-density {cfg.points_density:g} on this site gives {surface_points:,} simulator "
+                         f"points; the limit is {MAX_SURFACE_POINTS:,}: lower it")
     area = surface_points / cfg.points_density
     estimate = cfg.scoring_density * area
     if estimate > MAX_SCORING_POINTS:
