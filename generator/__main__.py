@@ -104,7 +104,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--verify", action="store_true",
                    help="hash every file of complete seeds before skipping them (default: check sizes, and hash "
                         "files whose modification time changed)")
-    p.add_argument("--repair", action="store_true", help="redo complete seeds whose files fail the check")
+    p.add_argument("--repair", action="store_true",
+                   help="hash every file of complete seeds (as --verify) and redo those whose files fail the check")
     p.add_argument("--wait", action="store_true",
                    help="wait for seeds another run is writing (default: skip them, exit code 4)")
     args = p.parse_args(argv)
@@ -158,7 +159,10 @@ def main(argv=None) -> int:
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
-    opts = Options(args.overwrite, args.repair, True if args.verify else None, args.wait, args.workers or 1)
+    # --repair hashes every file: a repair that trusted modification times could leave what
+    # `verify` reported (bytes changed with their time put back) and call the seed complete
+    opts = Options(args.overwrite, args.repair, True if args.verify or args.repair else None, args.wait,
+                   args.workers or 1)
     stopped = "interrupted before any seed started; nothing was written"
     # Ctrl-C is remembered from the start (Ray's start-up swallows it); SIGTERM gets our handler
     # once the executor is up (Ray's own start-up handler aborts if a Python one was set)

@@ -152,6 +152,10 @@ def test_same_size_change_with_the_old_time_needs_verify(tmp_path, finished):
     r = run(tmp_path, *SEED4, "--verify")
     assert r.returncode == 3 and "orbit/tracks.h5: contents changed" in r.stdout
     assert _verify(tmp_path).returncode == 1
+    # what verify reports, --repair redoes (it hashes every file, as --verify)
+    r = run(tmp_path, *SEED4, "--repair")
+    assert r.returncode == 0 and "seed 4: redoing it (orbit/tracks.h5: contents changed" in r.stdout, r.stdout[-2000:]
+    assert _verify(tmp_path).returncode == 0
 
 
 def test_repair_redoes_a_corrupted_seed(tmp_path, finished):
