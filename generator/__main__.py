@@ -138,6 +138,15 @@ def parse_args(argv=None) -> argparse.Namespace:
     return args
 
 
+def _stopped(what: str) -> int:
+    """Say what a signal left (one line on stderr); its exit code: 130 Ctrl-C, 143 SIGTERM."""
+    from .batch.runner import stopped_by
+
+    code, word = stopped_by()
+    print(f"{word}{'' if what.startswith(':') else ' '}{what}", file=sys.stderr)
+    return code
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["verify"]:
@@ -155,7 +164,7 @@ def main(argv=None) -> int:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
     from .batch.executors import ExecutorError, make_executor
-    from .batch.runner import INTERRUPTED, Options, exit_code, interrupt, run_seeds
+    from .batch.runner import INTERRUPTED, SIGNALS, Options, exit_code, interrupt, run_seeds
 
     k, n = args.shard
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
@@ -163,11 +172,11 @@ def main(argv=None) -> int:
     # `verify` reported (bytes changed with their time put back) and call the seed complete
     opts = Options(args.overwrite, args.repair, True if args.verify or args.repair else None, args.wait,
                    args.workers or 1)
-    stopped = "interrupted before any seed started; nothing was written"
     # Ctrl-C is remembered from the start (Ray's start-up swallows it); SIGTERM gets our handler
     # once the executor is up (Ray's own start-up handler aborts if a Python one was set)
     signal.signal(signal.SIGINT, interrupt)
     INTERRUPTED.clear()
+    SIGNALS.clear()
     try:
         executor = make_executor(args.executor, args.out, workers=opts.workers, address=args.ray_address,
                                  cpus_per_seed=args.cpus_per_seed or DEFAULT_CPUS_PER_SEED,
@@ -176,19 +185,16 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(stopped, file=sys.stderr)
-        return 130
+        return _stopped("before any seed started; nothing was written")
     for sig in (signal.SIGTERM, signal.SIGINT):  # a polite kill cleans up like Ctrl-C
         signal.signal(sig, interrupt)
     if INTERRUPTED.is_set():  # a signal that a library swallowed while the executor started
         executor.close()
-        print(stopped, file=sys.stderr)
-        return 130
+        return _stopped("before any seed started; nothing was written")
     try:
         results = run_seeds(args.out, seeds, cfg, opts, executor)
     except KeyboardInterrupt:
-        print("interrupted: unfinished seeds were removed; rerun the same command to finish them", file=sys.stderr)
-        return 130
+        return _stopped(": unfinished seeds were removed; rerun the same command to finish them")
     finally:
         executor.close()
     results = sorted(results, key=lambda r: seeds.index(r.seed))

@@ -5,6 +5,7 @@ fresh worker process, the atomic commit), whose events feed the progress bars. b
 
 from __future__ import annotations
 
+import signal
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,14 +19,24 @@ from .executors import Executor, Outcome, SeedJob
 # exit codes of python -m generator (docs/guarantees.md); the most severe applies
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_LEFT_ALONE, EXIT_BUSY = 0, 1, 2, 3, 4
 INTERRUPTED = threading.Event()  # set by interrupt(); the run loop stops at its next turn
+SIGNALS: list[int] = []  # the signals interrupt() was called for, in order
 
 
 def interrupt(signum=None, frame=None) -> None:
     """Signal handler for Ctrl-C and SIGTERM: raise KeyboardInterrupt, and remember it, so that
     a library that catches the exception inside a blocking call (Ray's waits check signals
     from C++) cannot make the run go on: the run loop raises it again at its next turn."""
+    SIGNALS.append(signal.SIGINT if signum is None else signum)
     INTERRUPTED.set()
     raise KeyboardInterrupt
+
+
+def stopped_by() -> tuple[int, str]:
+    """(exit code, word) of the first signal that stopped the run: 130 "interrupted" (Ctrl-C),
+    143 "terminated (SIGTERM)"."""
+    if SIGNALS and SIGNALS[0] == signal.SIGTERM:
+        return 128 + signal.SIGTERM, "terminated (SIGTERM)"
+    return 128 + signal.SIGINT, "interrupted"
 
 
 _EXIT_OF = {"done": EXIT_OK, "skipped": EXIT_OK, "failed": EXIT_FAILED, "conflict": EXIT_LEFT_ALONE,
