@@ -168,6 +168,14 @@ def test_exploration_table_is_reproducible(tmp_path):
     assert not np.array_equal(trajs[0].poses, trajs[1].poses)
     assert (tmp_path / "a" / "figure8_seed_3.png").is_file() and (tmp_path / "a" / "coverage_seed_3.png").is_file()
     assert "| 3 |" in a.stdout and "Read blend" not in a.stdout
+    # a rerun into the same folder with fewer runs leaves none of the first run's walks, and no
+    # Blender backup of the site it replaced
+    c = baselines("exploration", "--seeds", "3", "--steps", "5", "--runs", "1", "--scene-preset", "small",
+                  "--points-density", "1", "--out", tmp_path / "a")
+    assert c.returncode == 0, c.stderr[-2000:]
+    assert sorted(p.name for p in (tmp_path / "a" / "site_3").glob("*.npz")) == [
+        "coverage_curves.npz", "modified_random_walk_run00.npz", "random_walk_run00.npz"]
+    assert not list((tmp_path / "a" / "site_3").glob("*.blend1"))
 
 
 def test_reconstruction_points_lie_on_the_scene(tmp_path):

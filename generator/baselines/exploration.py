@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-PAPER_TABLE2 = {  # AUC mean and standard deviation over 10 runs (the paper's table 2)
+PAPER_TABLE2 = {  # AUC mean and standard deviation over 10 runs (the paper's table 2, its medium-sized sites)
     0: {"random_walk": (0.22, 0.05), "modified_random_walk": (0.38, 0.02)},
     137: {"random_walk": (0.26, 0.07), "modified_random_walk": (0.46, 0.04)},
     281: {"random_walk": (0.19, 0.05), "modified_random_walk": (0.35, 0.07)},
@@ -80,6 +80,8 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
     for seed in seeds:
         t0 = time.perf_counter()
         site_dir = out / f"site_{seed}"
+        for old in site_dir.glob("*_run[0-9][0-9].npz"):  # an earlier run's walks (another --runs, preset...)
+            old.unlink()
         plan = plan_site(seed, site_params(scene_preset))
         site = build_site(seed, scene_preset, site_dir, preview=False)
         sim = Simulator(site.blend, points_density=points_density, seed=seed, max_pcl_depth=max_depth)
@@ -110,7 +112,8 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
         for m in METHODS:
             entry[m] = _summary([coverage_auc(c) for c in curves[m]["all"]]) | {
                 "final_coverage_mean": float(np.mean([c[-1] for c in curves[m]["all"]])),
-                "paper_auc": PAPER_TABLE2.get(seed, {}).get(m)}
+                # the paper's figure only where its site is comparable: the medium preset
+                "paper_auc": PAPER_TABLE2.get(seed, {}).get(m) if scene_preset == "medium" else None}
             entry[m]["observable"] = _summary([coverage_auc(c) for c in curves[m]["observable"]]) | {
                 "final_coverage_mean": float(np.mean([c[-1] for c in curves[m]["observable"]]))}
         entry |= {"points": sim.num_points, "start_pose": start.tolist(),

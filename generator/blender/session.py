@@ -113,9 +113,15 @@ def new_empty_file() -> None:
 
 
 def save_blend(path: str | os.PathLike, compress: bool = True) -> None:
-    """Save the open file to ``path`` (zstd-compressed by default)."""
-    with quiet():
-        bpy.ops.wm.save_as_mainfile(filepath=str(Path(path).resolve()), compress=compress, copy=True)
+    """Save the open file to ``path`` (zstd-compressed by default), replacing a file there
+    without keeping Blender's ``.blend1`` backup of it."""
+    paths = bpy.context.preferences.filepaths
+    saved, paths.save_version = paths.save_version, 0
+    try:
+        with quiet():
+            bpy.ops.wm.save_as_mainfile(filepath=str(Path(path).resolve()), compress=compress, copy=True)
+    finally:
+        paths.save_version = saved
 
 
 def set_frame(frame: int) -> None:
