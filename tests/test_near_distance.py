@@ -2,6 +2,7 @@
 against an independent numpy twin (tests/distance_reference.py), needle triangles included."""
 
 import numpy as np
+import pytest
 from distance_reference import exact_distance
 
 from generator.geometry.near_distance import near_distances
@@ -37,6 +38,27 @@ def test_triangles_with_no_area_are_their_edges():
         points = rng.normal(size=(300, 3))
         reference = np.array([exact_distance(p, tri) for p in points])
         np.testing.assert_allclose(near_distances(points, tri, 10.0), reference, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("sine", [1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
+@pytest.mark.parametrize("tip", [0, 1, 2])
+def test_needles_whatever_corner_is_the_tip(sine, tip):
+    """A 10 m needle of tip angle ~``sine`` in the plane z = 0, turned and moved by a rigid
+    motion: a point above its face is |z| from it, one beyond its tip is at the tip's distance.
+    (Ericson's region tests were metres off at 1e-8 with the tip first, millimetres at 1e-6.)"""
+    rng = np.random.default_rng(tip)
+    length, width = 10.0, 10.0 * sine
+    corners = np.array([[0.0, 0.0, 0.0], [length, 0.0, 0.0], [length, width, 0.0]])
+    x = rng.uniform(0.5, length - 0.5, 200)
+    inside = np.stack([x, x * width / length * rng.uniform(0, 1, 200), rng.uniform(-0.1, 0.1, 200)], axis=1)
+    beyond = np.stack([-rng.uniform(0.01, 0.1, 200), rng.uniform(-0.05, 0.05, 200), rng.uniform(-0.1, 0.1, 200)], axis=1)
+    expected = np.r_[np.abs(inside[:, 2]), np.linalg.norm(beyond, axis=1)]
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    move = lambda v: v @ q.T + np.array([40.0, -25.0, 3.0])  # noqa: E731
+    tri = move(np.roll(corners, tip, axis=0))[None]
+    got = near_distances(move(np.r_[inside, beyond]), tri, 0.5)
+    # the rigid motion's own rounding; and a needle's width where its plane is not used (sine <= 1e-8)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 + (width if sine <= 1e-8 else 0.0))
 
 
 def test_a_point_on_a_scaffold_tube_is_at_distance_zero():

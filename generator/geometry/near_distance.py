@@ -6,7 +6,8 @@ scaffold tube's 15 m x 1.5 cm faces, a crane jib's) is off by millimetres to cen
 Where a distance must be exact (the timeline's added / removed points, generator/scene/
 changes.py), :func:`near_distances` takes every triangle whose box, grown by ``radius``,
 meets the grid cell of a point, and keeps the smallest float64 point-to-triangle distance
-(Ericson's closest point on a triangle, "Real-Time Collision Detection" 5.1.5). Triangles
+(:func:`point_triangle_sq`: the nearest of the three edges and, when the foot of the
+perpendicular falls inside the triangle, of its plane). Triangles
 farther than ``radius`` may be among the candidates; no triangle within ``radius`` is
 missed, so a finite answer <= ``radius`` is the exact distance to the whole surface.
 
@@ -52,45 +53,36 @@ def _edges_sq(px, py, pz, tri):
 
 
 @numba.njit(cache=True, nogil=True)
+def _side(nx, ny, nz, ex, ey, ez, qx, qy, qz):
+    """n . (e x q): >= 0 when q lies on the inner side of the edge e (seen along n)."""
+    return _dot(nx, ny, nz, ey * qz - ez * qy, ez * qx - ex * qz, ex * qy - ey * qx)
+
+
+@numba.njit(cache=True, nogil=True)
 def point_triangle_sq(px, py, pz, tri):
-    """Squared float64 distance from point p to the triangle ``tri`` (3, 3)."""
+    """Squared float64 distance from point p to the triangle ``tri`` (3, 3): the nearest of its
+    three edges, and of its plane when the foot of the perpendicular falls inside it (the signs
+    of n . (e x (p - v)) on its three edges). Ericson's region tests are not used: on needles
+    they cancel (off by millimetres at a sine of 1e-6 at a corner)."""
     ax, ay, az = tri[0, 0], tri[0, 1], tri[0, 2]
     abx, aby, abz = tri[1, 0] - ax, tri[1, 1] - ay, tri[1, 2] - az
     acx, acy, acz = tri[2, 0] - ax, tri[2, 1] - ay, tri[2, 2] - az
+    edges = _edges_sq(px, py, pz, tri)
     nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
-    # no area to round-off (sin of the angle at a below 1e-12: a segment or a point), where the
-    # regions below are decided by noise: its edges hold it, to 1e-12 of its size
-    if _dot(nx, ny, nz, nx, ny, nz) <= 1e-24 * (_dot(abx, aby, abz, abx, aby, abz) * _dot(acx, acy, acz, acx, acy, acz)):
-        return _edges_sq(px, py, pz, tri)
+    nn = _dot(nx, ny, nz, nx, ny, nz)
+    # a sine below 1e-8 at a (a needle or a segment): the edges are within that share of its
+    # size of every point of it, nearer than the round-off of its normal would allow
+    if nn <= 1e-16 * (_dot(abx, aby, abz, abx, aby, abz) * _dot(acx, acy, acz, acx, acy, acz)):
+        return edges
     apx, apy, apz = px - ax, py - ay, pz - az
-    d1, d2 = _dot(abx, aby, abz, apx, apy, apz), _dot(acx, acy, acz, apx, apy, apz)
-    if d1 <= 0.0 and d2 <= 0.0:  # vertex a
-        return _dot(apx, apy, apz, apx, apy, apz)
-    bpx, bpy, bpz = px - tri[1, 0], py - tri[1, 1], pz - tri[1, 2]
-    d3, d4 = _dot(abx, aby, abz, bpx, bpy, bpz), _dot(acx, acy, acz, bpx, bpy, bpz)
-    if d3 >= 0.0 and d4 <= d3:  # vertex b
-        return _dot(bpx, bpy, bpz, bpx, bpy, bpz)
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:  # edge ab
-        return _off_sq(apx, apy, apz, d1 / (d1 - d3), abx, aby, abz)
-    cpx, cpy, cpz = px - tri[2, 0], py - tri[2, 1], pz - tri[2, 2]
-    d5, d6 = _dot(abx, aby, abz, cpx, cpy, cpz), _dot(acx, acy, acz, cpx, cpy, cpz)
-    if d6 >= 0.0 and d5 <= d6:  # vertex c
-        return _dot(cpx, cpy, cpz, cpx, cpy, cpz)
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:  # edge ac
-        return _off_sq(apx, apy, apz, d2 / (d2 - d6), acx, acy, acz)
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:  # edge bc
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        bcx, bcy, bcz = tri[2, 0] - tri[1, 0], tri[2, 1] - tri[1, 1], tri[2, 2] - tri[1, 2]
-        return _off_sq(bpx, bpy, bpz, w, bcx, bcy, bcz)
-    denom = (va + vb) + vc
-    if not denom > 0.0:  # round-off on a sliver of almost no area: its edges hold it
-        return _edges_sq(px, py, pz, tri)
-    v, w = vb / denom, vc / denom  # inside the face: p - (a + v ab + w ac)
-    qx, qy, qz = apx - (v * abx + w * acx), apy - (v * aby + w * acy), apz - (v * abz + w * acz)
-    return _dot(qx, qy, qz, qx, qy, qz)
+    bx, by, bz = tri[1, 0], tri[1, 1], tri[1, 2]
+    cx, cy, cz = tri[2, 0], tri[2, 1], tri[2, 2]
+    if (_side(nx, ny, nz, abx, aby, abz, apx, apy, apz) >= 0.0
+            and _side(nx, ny, nz, cx - bx, cy - by, cz - bz, px - bx, py - by, pz - bz) >= 0.0
+            and _side(nx, ny, nz, ax - cx, ay - cy, az - cz, px - cx, py - cy, pz - cz) >= 0.0):
+        h = _dot(nx, ny, nz, apx, apy, apz)
+        return min(edges, h * h / nn)
+    return edges
 
 
 @numba.njit(cache=True, nogil=True)
