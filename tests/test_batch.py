@@ -382,3 +382,23 @@ def test_seed_folders_of_an_older_format_are_left_alone(tmp_path):
     assert decide(tmp_path, 2, cfg, overwrite=False, repair=False, hashes=None).action == "skip"
     assert decide(tmp_path, 1, cfg, overwrite=True, repair=False, hashes=None).action == "run"
     assert read_manifest(tmp_path / "seed_000001")["format_version"] == "0.2"  # deciding touches nothing
+
+
+def test_a_second_signal_does_not_cut_the_clean_up_short():
+    """The first Ctrl-C or SIGTERM stops the run (KeyboardInterrupt) and decides the exit code;
+    one more while the executor cancels its tasks and removes their folders is only noted."""
+    import signal
+
+    from generator.batch import runner
+
+    runner.INTERRUPTED.clear()
+    runner.SIGNALS.clear()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            runner.interrupt(signal.SIGTERM)
+        assert runner.interrupt(signal.SIGINT) is None  # no exception in the clean-up
+        assert runner.stopped_by() == (143, "terminated (SIGTERM)")
+        assert runner.SIGNALS == [signal.SIGTERM, signal.SIGINT]
+    finally:
+        runner.INTERRUPTED.clear()
+        runner.SIGNALS.clear()

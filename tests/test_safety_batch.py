@@ -274,7 +274,7 @@ def test_points_density_is_refused_before_rendering(tmp_path):
     bound (1.75 M) but the built site has about 9 M; the limit is 5 M."""
     r = run(tmp_path, "--seeds", "12", "--points-density", "700")
     assert r.returncode == 1 and "--points-density 700 on this site gives" in r.stdout, r.stdout[-2000:]
-    assert "the limit is 5,000,000: lower it" in r.stdout
+    assert "the limit is 5,000,000: lower it, e.g. to " in r.stdout
     assert not (tmp_path / "seed_000012").exists()
     assert not list((tmp_path / ".seed_000012.partial").rglob("*.exr"))
 

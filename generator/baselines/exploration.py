@@ -12,6 +12,7 @@ paper's figure) and over the observable ones (``Simulator.observable_points_mask
 from __future__ import annotations
 
 import json
+import re
 import time
 from pathlib import Path
 
@@ -80,8 +81,9 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
     for seed in seeds:
         t0 = time.perf_counter()
         site_dir = out / f"site_{seed}"
-        for old in site_dir.glob("*_run[0-9][0-9].npz"):  # an earlier run's walks (another --runs, preset...)
-            old.unlink()
+        for old in site_dir.glob("*_run*.npz"):  # an earlier run's walks (another --runs, preset...), ours only
+            if re.fullmatch(rf"({'|'.join(METHODS)})_run\d+\.npz", old.name):
+                old.unlink()
         plan = plan_site(seed, site_params(scene_preset))
         site = build_site(seed, scene_preset, site_dir, preview=False)
         sim = Simulator(site.blend, points_density=points_density, seed=seed, max_pcl_depth=max_depth)

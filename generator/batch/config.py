@@ -102,12 +102,14 @@ def check_point_budget(cfg: RunConfig, surface_points: int) -> None:
     MAX_SCORING_POINTS (the site's surface area estimated from its simulator points)."""
     if surface_points > MAX_SURFACE_POINTS:
         raise ValueError(f"--points-density {cfg.points_density:g} on this site gives {surface_points:,} simulator "
-                         f"points; the limit is {MAX_SURFACE_POINTS:,}: lower it")
+                         f"points; the limit is {MAX_SURFACE_POINTS:,}: lower it, e.g. to "
+                         f"{0.99 * cfg.points_density * MAX_SURFACE_POINTS / surface_points:.3g}")
     area = surface_points / cfg.points_density
     estimate = cfg.scoring_density * area
     if estimate > MAX_SCORING_POINTS:
         raise ValueError(f"--scoring-density {cfg.scoring_density:g} on this site (about {area:,.0f} m^2 of surface) "
-                         f"gives about {estimate:,.0f} points; the limit is {MAX_SCORING_POINTS:,}: lower it")
+                         f"gives about {estimate:,.0f} points; the limit is {MAX_SCORING_POINTS:,}: lower it, e.g. to "
+                         f"{0.99 * cfg.scoring_density * MAX_SCORING_POINTS / estimate:.3g}")
 
 
 def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndarray, seed: int, frames: int, fps: float):

@@ -135,7 +135,7 @@ def _differences(old: dict, new: dict) -> str:
 
 def decide(out: Path, seed: int, config: dict, overwrite: bool, repair: bool, hashes: bool | None) -> Decision:
     """What to do with ``seed`` given what ``out`` holds; call it holding the seed's lock.
-    ``hashes`` as in ``exporters.manifest.check_files`` (True with --verify)."""
+    ``hashes`` as in ``exporters.manifest.check_files`` (True with --verify or --repair)."""
     final = seed_folder(out, seed)
     if not os.path.lexists(final):
         return Decision("run", "")

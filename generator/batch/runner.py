@@ -27,13 +27,15 @@ def interrupt(signum=None, frame=None) -> None:
     a library that catches the exception inside a blocking call (Ray's waits check signals
     from C++) cannot make the run go on: the run loop raises it again at its next turn."""
     SIGNALS.append(signal.SIGINT if signum is None else signum)
+    if INTERRUPTED.is_set() and len(SIGNALS) > 1:
+        return  # the clean-up of the first signal is under way: a second one must not cut it short
     INTERRUPTED.set()
     raise KeyboardInterrupt
 
 
 def stopped_by() -> tuple[int, str]:
-    """(exit code, word) of the first signal that stopped the run: 130 "interrupted" (Ctrl-C),
-    143 "terminated (SIGTERM)"."""
+    """(exit code, word) of the first signal that stopped the run (later ones during the
+    clean-up are noted, not acted on): 130 "interrupted" (Ctrl-C), 143 "terminated (SIGTERM)"."""
     if SIGNALS and SIGNALS[0] == signal.SIGTERM:
         return 128 + signal.SIGTERM, "terminated (SIGTERM)"
     return 128 + signal.SIGINT, "interrupted"
@@ -57,7 +59,7 @@ class SeedResult:
 @dataclass(frozen=True)
 class Options:
     """overwrite: replace complete seeds; repair: redo complete seeds whose files fail the
-    check; hashes: True hashes every file of a complete seed, None only files whose time
+    check; hashes (True with --verify or --repair): True hashes every file of a complete seed, None only files whose time
     changed; wait: wait for seeds another run is writing instead of skipping them."""
 
     overwrite: bool = False
@@ -116,6 +118,7 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
 
         executor = LocalExecutor(opts.workers)
     INTERRUPTED.clear()
+    SIGNALS.clear()
     results: list[SeedResult] = []
     pending = list(seeds)
     locks: dict[int, folders.SeedLock] = {}
