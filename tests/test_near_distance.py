@@ -1,9 +1,9 @@
 """Exact float64 distances to the triangles near a point (generator/geometry/near_distance.py),
-against an independent numpy twin (tests/distance_reference.py), needle triangles included."""
+against an independent numpy twin (tests/exact_geometry.py), needle triangles included."""
 
 import numpy as np
 import pytest
-from distance_reference import exact_distance
+from exact_geometry import exact_distance
 
 from generator.geometry.near_distance import near_distances
 

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import ROOT, run_generator
-from distance_reference import exact_distance
+from exact_geometry import exact_distance
 
 from evaluation.change import gt_change_cloud, score_change_cloud, score_change_masks
 from exporters.changes import STATUS, read_changes
