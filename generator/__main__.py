@@ -139,11 +139,12 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 
 def _stopped(what: str) -> int:
-    """Say what a signal left (one line on stderr); its exit code: 130 Ctrl-C, 143 SIGTERM."""
+    """Print the signal's word and ``what`` (which starts with its own separator) on stderr;
+    return the exit code: 130 Ctrl-C, 143 SIGTERM."""
     from .batch.runner import stopped_by
 
     code, word = stopped_by()
-    print(f"{word}{'' if what.startswith(':') else ' '}{what}", file=sys.stderr)
+    print(f"{word}{what}", file=sys.stderr)
     return code
 
 
@@ -185,12 +186,12 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        return _stopped("before any seed started; nothing was written")
+        return _stopped(" before any seed started; nothing was written")
     for sig in (signal.SIGTERM, signal.SIGINT):  # a polite kill cleans up like Ctrl-C
         signal.signal(sig, interrupt)
     if INTERRUPTED.is_set():  # a signal that a library swallowed while the executor started
         executor.close()
-        return _stopped("before any seed started; nothing was written")
+        return _stopped(" before any seed started; nothing was written")
     try:
         results = run_seeds(args.out, seeds, cfg, opts, executor)
     except KeyboardInterrupt:

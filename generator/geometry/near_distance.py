@@ -132,7 +132,8 @@ def near_distances(points: np.ndarray, triangles: np.ndarray, radius: float) -> 
     # so large that the keys would not hold them
     extent = max(float(np.abs(p).max()), float(np.abs(tri).max()) + radius)
     cell = max(float(radius), extent / (_SPAN - 2), 1e-9)
-    point_keys = _keys_of(np.floor(p / cell).astype(np.int64))
+    ijk = np.floor(p / cell).astype(np.int64)
+    point_keys = _key(ijk[:, 0], ijk[:, 1], ijk[:, 2])  # the kernels' own key, on whole arrays
     cells, point_cell = np.unique(point_keys, return_inverse=True)
     lo, hi = tri.min(axis=1) - radius, tri.max(axis=1) + radius
     counts = np.zeros(len(cells), np.int64)
@@ -145,6 +146,3 @@ def near_distances(points: np.ndarray, triangles: np.ndarray, radius: float) -> 
     nearest_in_cells(p, point_cell.reshape(-1).astype(np.int64), start, members, tri, out)
     return out
 
-
-def _keys_of(ijk: np.ndarray) -> np.ndarray:
-    return ((ijk[:, 0] + _SPAN) * (2 * _SPAN) + (ijk[:, 1] + _SPAN)) * (2 * _SPAN) + (ijk[:, 2] + _SPAN)
