@@ -239,8 +239,9 @@ def exploration(sim: Simulator) -> None:
     sim.compute_point_cloud()
     # the collision test's structures (open3d's, built at their first query since visibility's
     # rays have Embree scenes of their own) are built here, outside the timed steps
-    sim.move_camera_forward(0.5)
-    sim.move_camera_forward(-0.5)
+    centre = sim.get_world_from_camera()[:3, 3]
+    sim.is_free(centre)
+    sim.can_move(centre, centre + (0.0, 0.0, 0.5))
     t0 = time.perf_counter()
     steps = 40
     for _ in range(steps):

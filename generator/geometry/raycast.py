@@ -1,10 +1,7 @@
-"""Ray casting and distance queries on a set of rigid mesh parts (Embree, through open3d
-and directly).
+"""Ray casting and distance queries on a set of rigid mesh parts (open3d / Embree).
 
 Static parts go into one acceleration structure built once; dynamic parts into a second
-one rebuilt only when their matrices change (the paper's two BVH trees). Occlusion tests
-(:meth:`SceneGeometry.rays_blocked`) use structures of their own, built lazily by
-:mod:`.embree`; first hits, distances and inside tests use open3d's (:mod:`.structure`).
+one rebuilt only when their matrices change (the paper's two BVH trees).
 """
 
 from __future__ import annotations
@@ -14,7 +11,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from .camera import rows_times
-from .embree import BUILD_HIGH, BUILD_MEDIUM, OcclusionScene, occluded
 from .parts import MeshPart
 from .portable_math import vector_norm
 from .structure import Structure, tensor
@@ -50,10 +46,6 @@ class SceneGeometry:
         self._dynamic = None
         self._dynamic_closed = None
         self._dynamic_dirty = True
-        # Embree scenes of the occlusion tests: static (built at the first test), dynamic
-        # (rebuilt when ``version`` moves past the one it was built at)
-        self._occluders_static = None
-        self._occluders_dynamic, self._occluders_version = None, -1
         # visibility.PointBlocks of the last point set tested against this scene (a cache)
         self.point_blocks = None
         # incremented whenever a dynamic part moves (for caches of query answers)
@@ -99,15 +91,6 @@ class SceneGeometry:
             scenes = [self._static, self._dynamic]
         return [s.scene for s in scenes if s is not None]
 
-    def occlusion_scenes(self) -> list[OcclusionScene]:
-        """The Embree scenes of the occlusion tests (static, dynamic at the current matrices)."""
-        if self._occluders_static is None:
-            self._occluders_static = OcclusionScene([self.parts[i] for i in self.static_index], BUILD_HIGH)
-        if self._occluders_version != self.version:
-            self._occluders_dynamic = OcclusionScene([self.parts[i] for i in self.dynamic_index], BUILD_MEDIUM)
-            self._occluders_version = self.version
-        return [self._occluders_static, self._occluders_dynamic]
-
     def world_bounds(self) -> np.ndarray:
         """Axis-aligned bounds (P, 2, 3) of every part at the current matrices (a new array)."""
         if self._bounds_version != self.version:
@@ -144,7 +127,22 @@ class SceneGeometry:
     def rays_blocked(self, rays: np.ndarray) -> np.ndarray:
         """For each float32 ray (N, 6) [origin, direction]: does the segment from the origin
         to origin + direction (t in [0, 1]) hit any triangle? Returns (N,) bool."""
-        return occluded(self.occlusion_scenes(), rays)
+        blocked = np.zeros(len(rays), dtype=bool)
+        if len(rays) == 0:
+            return blocked
+        open_ = None  # rays not blocked yet (None: all); each scene tests only those
+        for scene in self._scenes():
+            if open_ is not None and len(open_) == 0:
+                break
+            t_rays = tensor(rays if open_ is None else np.take(rays, open_, axis=0))
+            hit = scene.test_occlusions(t_rays, tnear=0.0, tfar=1.0).numpy().view(bool)
+            if open_ is None:
+                blocked = hit.copy()
+                open_ = np.flatnonzero(~hit)
+            else:
+                blocked[open_[hit]] = True
+                open_ = open_[~hit]
+        return blocked
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Unsigned distance (N,) in metres from each point to the nearest triangle."""
