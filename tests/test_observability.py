@@ -14,31 +14,24 @@ from exporters.ground_truth import read_ground_truth, sample_scoring_points
 from exporters.ply import read_ply, write_ply
 from generator.geometry.observability import (cube_map_visible, default_viewpoints, observable_mask,
                                               visible_from)
-from generator.geometry.parts import MeshPart, closed_and_orientation
 from generator.geometry.raycast import SceneGeometry
 from generator.geometry.sampling import sample_triangles
 from generator.scene.meshes import MeshBuilder
-
-
-def _part(name, builder, **kw):
-    d = builder.build()
-    tris = np.concatenate([d.quads[:, [0, 1, 2]], d.quads[:, [0, 2, 3]], d.tris]) if len(d.quads) else d.tris
-    closed, outward = closed_and_orientation(d.vertices, tris)
-    return MeshPart(name, name, d.vertices, tris, closed=closed, outward=outward, **kw)
+from part_builder import mesh_part
 
 
 @pytest.fixture(scope="module")
 def sealed_scene():
     """An open ground plane; a closed box shell (a 6 m room, inner walls facing the room)
     with a crate inside; a wall standing in the open."""
-    ground = _part("Ground", MeshBuilder().add([(-30, -30, 0), (30, -30, 0), (30, 30, 0), (-30, 30, 0)], [(0, 1, 2, 3)]))
+    ground = mesh_part("Ground", MeshBuilder().add([(-30, -30, 0), (30, -30, 0), (30, 30, 0), (-30, 30, 0)], [(0, 1, 2, 3)]))
     shell = MeshBuilder().box((6.4, 6.4, 6.4), (0, 0, 3.2))
     inner = MeshBuilder().box((6.0, 6.0, 6.0), (0, 0, 3.2)).build()
     inner.quads = inner.quads[:, ::-1]  # facing into the room: the shell is a closed solid with a cavity
     shell.merge(inner)
-    room = _part("Room", shell)
-    crate = _part("Crate", MeshBuilder().box((1.0, 1.0, 1.0), (0.5, -0.5, 0.7)))
-    wall = _part("Wall", MeshBuilder().box((0.3, 8.0, 3.0), (15.0, 0.0, 1.5)))
+    room = mesh_part("Room", shell)
+    crate = mesh_part("Crate", MeshBuilder().box((1.0, 1.0, 1.0), (0.5, -0.5, 0.7)))
+    wall = mesh_part("Wall", MeshBuilder().box((0.3, 8.0, 3.0), (15.0, 0.0, 1.5)))
     assert room.closed and crate.closed and wall.closed and not ground.closed
     parts = [ground, room, crate, wall]
     rng = np.random.default_rng(0)

@@ -7,17 +7,11 @@ import numpy as np
 import pytest
 
 from generator import Simulator  # noqa: F401  (bpy before open3d)
-from generator.geometry.parts import MeshPart, closed_and_orientation
+from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import SceneGeometry
 from generator.scene.meshes import MeshBuilder
 from exact_geometry import first_hits, scene_triangles
-
-
-def _part(name, builder, **kw):
-    d = builder.build()
-    tris = np.concatenate([d.quads[:, [0, 1, 2]], d.quads[:, [0, 2, 3]], d.tris]) if len(d.quads) else d.tris
-    closed, outward = closed_and_orientation(d.vertices, tris)
-    return MeshPart(name, name, d.vertices, tris, closed=closed, outward=outward, **kw)
+from part_builder import mesh_part
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +19,8 @@ def parts():
     """Boxes (closed, two of them moving), an open single-sided ground and a free-standing
     wall (one-sided quads)."""
     rng = np.random.default_rng(3)
-    out = [_part("Ground", MeshBuilder().add([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], [(0, 1, 2, 3)])),
-           _part("Wall", MeshBuilder().add([(-5, 4, 0), (5, 4, 0), (5, 4, 6), (-5, 4, 6)], [(0, 1, 2, 3)]))]
+    out = [mesh_part("Ground", MeshBuilder().add([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], [(0, 1, 2, 3)])),
+           mesh_part("Wall", MeshBuilder().add([(-5, 4, 0), (5, 4, 0), (5, 4, 6), (-5, 4, 6)], [(0, 1, 2, 3)]))]
     for k in range(12):
         size = tuple(rng.uniform(0.5, 3.0, 3))
         centre = (*rng.uniform(-12, 12, 2), size[2] / 2 + rng.uniform(0, 2))
@@ -34,7 +28,7 @@ def parts():
         builder = MeshBuilder().box(size, (0, 0, 0) if moving else centre)
         matrix = np.eye(4)
         matrix[:3, 3] = centre
-        out.append(_part(f"Box{k}", builder, dynamic=True, matrix=matrix) if moving else _part(f"Box{k}", builder))
+        out.append(mesh_part(f"Box{k}", builder, dynamic=True, matrix=matrix) if moving else mesh_part(f"Box{k}", builder))
     return out
 
 
@@ -98,7 +92,7 @@ def test_float64_and_strided_input(parts):
 
 
 def test_rays_blocked_follows_moving_parts(parts):
-    crate = _part("Crate", MeshBuilder().box((1.0, 1.0, 1.0), (0.0, 0.0, 0.0)), dynamic=True)
+    crate = mesh_part("Crate", MeshBuilder().box((1.0, 1.0, 1.0), (0.0, 0.0, 0.0)), dynamic=True)
     geometry = SceneGeometry(parts[:1] + [crate])  # ground and a moving crate
     ray = np.array([[0, -10, 2, 0, 20, 0]], np.float32)  # 2 m above the ground, along +y
     assert not geometry.rays_blocked(ray)[0]
