@@ -10,26 +10,44 @@ from generator import Simulator  # noqa: F401  (bpy before open3d)
 from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import SceneGeometry
 from generator.scene.meshes import MeshBuilder
-from exact_geometry import first_hits, scene_triangles
+from exact_geometry import first_hits
 from part_builder import mesh_part
+
+
+def _turn(angle: float, centre) -> np.ndarray:
+    """world_from_object: a turn of ``angle`` radians about z, then a shift to ``centre``."""
+    c, s = np.cos(angle), np.sin(angle)
+    m = np.eye(4)
+    m[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    m[:3, 3] = centre
+    return m
 
 
 @pytest.fixture(scope="module")
 def parts():
-    """Boxes (closed, two of them moving), an open single-sided ground and a free-standing
-    wall (one-sided quads)."""
+    """Boxes (closed; two of them dynamic, turned and shifted by their matrices), an open
+    single-sided ground and a free-standing wall (one-sided quads)."""
     rng = np.random.default_rng(3)
     out = [mesh_part("Ground", MeshBuilder().add([(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)], [(0, 1, 2, 3)])),
            mesh_part("Wall", MeshBuilder().add([(-5, 4, 0), (5, 4, 0), (5, 4, 6), (-5, 4, 6)], [(0, 1, 2, 3)]))]
     for k in range(12):
         size = tuple(rng.uniform(0.5, 3.0, 3))
         centre = (*rng.uniform(-12, 12, 2), size[2] / 2 + rng.uniform(0, 2))
-        moving = k < 2
-        builder = MeshBuilder().box(size, (0, 0, 0) if moving else centre)
-        matrix = np.eye(4)
-        matrix[:3, 3] = centre
-        out.append(mesh_part(f"Box{k}", builder, dynamic=True, matrix=matrix) if moving else mesh_part(f"Box{k}", builder))
+        if k < 2:
+            out.append(mesh_part(f"Box{k}", MeshBuilder().box(size), dynamic=True, matrix=_turn(0.4 + k, centre)))
+        else:
+            out.append(mesh_part(f"Box{k}", MeshBuilder().box(size, centre)))
     return out
+
+
+def _world_triangles(parts) -> np.ndarray:
+    """(T, 3, 3) float64 corners of every triangle, placed by each part's matrix in plain
+    numpy (not MeshPart.world_vertices), rounded to the float32 values the structure holds."""
+    out = []
+    for p in parts:
+        world = p.vertices @ p.matrix[:3, :3].T + p.matrix[:3, 3]
+        out.append(world.astype(np.float32).astype(np.float64)[p.faces])
+    return np.concatenate(out)
 
 
 def _random_rays(rng, n):
@@ -43,8 +61,9 @@ def test_same_answers_as_float64_segments(parts):
     rays = _random_rays(np.random.default_rng(0), 3000)
     got = SceneGeometry(parts).rays_blocked(rays)
     o, d = rays[:, :3].astype(np.float64), rays[:, 3:].astype(np.float64)
-    t, _ = first_hits(o, d, scene_triangles(parts))
-    clear = ~(np.abs(t - 1) < 1e-5) & ~(t < 1e-5)  # the first hit clear of both ends
+    t, _ = first_hits(o, d, _world_triangles(parts))
+    margin = 1e-4 / np.linalg.norm(d, axis=1)  # 0.1 mm, as a share of each segment
+    clear = ~(np.abs(t - 1) < margin) & ~(t < margin)  # the first hit clear of both ends
     want = t <= 1
     assert clear.sum() > 2900 and 0.2 < want.mean() < 0.9  # a real mix of blocked and clear segments
     np.testing.assert_array_equal(got[clear], want[clear])
