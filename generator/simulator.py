@@ -103,8 +103,13 @@ class Simulator(CameraMoves, PaperAPI):
         self.blend_file = Path(blend_file)
         self.geometry_nodes_objects = check_names("geometry_nodes_objects", geometry_nodes_objects)
         self.filter_object_names = check_names("filter_object_names", filter_object_names)
+        if instance_names is not None:
+            instance_names = check_names("instance_names", instance_names)
         self.ground_truth = ground_truth
-        self.verbose = bool(verbose)
+        self.verbose = check_flag("verbose", verbose)
+        # every argument is checked before the file is loaded: loading replaces Blender's
+        # scene, and with it the scene of any Simulator made before this one
+        settings = resolve_settings(render_preset) if render_preset is not None else None
 
         session.open_blend(self.blend_file)
         self._generation = session.generation()
@@ -112,8 +117,8 @@ class Simulator(CameraMoves, PaperAPI):
         bcam.detach_camera(self._camera)
         session.make_viewport_match_render()
 
-        if render_preset is not None:
-            apply_settings(resolve_settings(render_preset))
+        if settings is not None:
+            apply_settings(settings)
         self._refresh_intrinsics()
         self.clip_start, self.clip_end = bcam.clip_range(self._camera)
 
@@ -232,12 +237,14 @@ class Simulator(CameraMoves, PaperAPI):
     @property
     def frame_range(self) -> tuple[int, int]:
         """First and last frame of the scene's animation (inclusive)."""
+        self._check_current()
         scene = session.bpy.context.scene
         return int(scene.frame_start), int(scene.frame_end)
 
     @property
     def fps(self) -> float:
         """Animation frames per second."""
+        self._check_current()
         r = session.bpy.context.scene.render
         return float(r.fps) / float(r.fps_base)
 
@@ -281,6 +288,7 @@ class Simulator(CameraMoves, PaperAPI):
         (``math.inf``: every depth the camera renders, up to its clip end).
         """
         self._check_current()
+        update_mask, imshow = check_flag("update_mask", update_mask), check_flag("imshow", imshow)
         limit = (self.max_pcl_depth if max_depth is None
                  else check_number("max_depth", max_depth, 0, open_low=True, finite=False))
         pts = self._points
@@ -448,7 +456,8 @@ class Simulator(CameraMoves, PaperAPI):
         (colour needs a renderer). Objects in ``filter_object_names`` are unlabelled surfaces
         (seg and instance -1, depth and normal kept). See generator/geometry/pixel_truth.py."""
         self._check_current()
-        return self._views.render_geometry(self._camera_model(), self._world_from_camera, self.frame, normals)
+        return self._views.render_geometry(self._camera_model(), self._world_from_camera, self.frame,
+                                           check_flag("normals", normals))
 
     def _camera_model(self) -> CameraModel:
         return CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end)

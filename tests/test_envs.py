@@ -261,29 +261,6 @@ def test_procedural_site_is_built_once_cached_and_rebuilt_after_a_code_change(tm
     env.close()
 
 
-def test_site_code_key_follows_the_site_generator_sources(tmp_path):
-    import shutil
-
-    from generator.envs.scenes import PACKAGE_ROOT, SITE_SOURCES
-
-    for rel in SITE_SOURCES:
-        src = PACKAGE_ROOT / rel
-        if src.is_dir():
-            shutil.copytree(src, tmp_path / rel, ignore=shutil.ignore_patterns("__pycache__"))
-        else:
-            (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy(src, tmp_path / rel)
-    assert site_code_key(tmp_path) == site_code_key()
-    (tmp_path / "scene" / "README.txt").write_text("not code")
-    assert site_code_key(tmp_path) == site_code_key()
-    site = tmp_path / "scene" / "site.py"
-    site.write_text(site.read_text() + "\n")
-    assert site_code_key(tmp_path) != site_code_key()
-    site.unlink()
-    with pytest.raises(FileNotFoundError, match="site_code_key"):
-        site_code_key(tmp_path / "nowhere")
-
-
 def test_make_vec_default_runs_one_process_per_env(rooms):
     kw = {"blend_files": [str(rooms[0])], "resolution": (24, 16), "points_density": 20.0, "max_steps": 3}
     envs = gym.make_vec(EXPLORATION_ID, num_envs=2, **kw)  # no vectorization_mode: the id's vector entry point

@@ -21,9 +21,13 @@ class SceneError(ValueError):
 
 def check_names(name: str, value) -> tuple[str, ...]:
     """``value`` as a tuple of object names, or a one-line error naming the argument."""
-    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+    try:
+        names = None if isinstance(value, (str, bytes)) else tuple(value)
+    except TypeError:  # not iterable (None, a number)
+        names = None
+    if names is None or not all(isinstance(v, str) for v in names):
         raise ValueError(f"{name} must be a list of object names, got {value!r}")
-    return tuple(value)
+    return names
 
 
 def object_table(extracted, filter_object_names: tuple[str, ...], instance_names, blend: Path):

@@ -44,10 +44,18 @@ def discrete_target(pose: np.ndarray, action: int, step: float, angle: float) ->
 
 def heading_and_pitch(pose: np.ndarray) -> tuple[float, float]:
     """Heading (radians from +X, counter-clockwise seen from above) and pitch (radians above
-    the horizon) of the camera's optical axis."""
-    f = np.asarray(pose, dtype=np.float64)[:3, 2]
+    the horizon) of the camera's optical axis. Looking straight down (up), the axis has no
+    heading: it is then the direction the top (bottom) of the image points to, where the
+    camera heads when it tilts up (down) from there."""
+    m = np.asarray(pose, dtype=np.float64)
+    f = m[:3, 2]
     # portable_math: the same bits on every CPU; atan2(z, |xy|) is asin(z) of a unit axis
-    return portable_math.atan2(f[1], f[0]), portable_math.atan2(f[2], portable_math.hypot(f[0], f[1]))
+    horizontal = portable_math.hypot(f[0], f[1])
+    pitch = portable_math.atan2(f[2], horizontal)
+    if horizontal == 0.0:
+        up = -m[:3, 1] if f[2] < 0 else m[:3, 1]  # camera y points down the image
+        return portable_math.atan2(up[1], up[0]), pitch
+    return portable_math.atan2(f[1], f[0]), pitch
 
 
 def continuous_targets(pose: np.ndarray, action: np.ndarray, step: float, angle: float) -> tuple[np.ndarray, np.ndarray]:

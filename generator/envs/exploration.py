@@ -366,8 +366,10 @@ def _discrete(action) -> int:
 
 
 def _sources(seeds, blend_files) -> list[tuple[str, object]]:
-    if isinstance(seeds, (int, np.integer, str, bytes)) or isinstance(blend_files, (str, bytes, os.PathLike)):
-        raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend'])")
+    for value in (seeds, blend_files):
+        if isinstance(value, (int, np.integer, str, bytes, os.PathLike)) or not hasattr(value, "__iter__"):
+            raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend']), "
+                             f"got {value!r}")
     out: list[tuple[str, object]] = []
     for i, s in enumerate(seeds):
         out.append(("seed", check_seed(f"seeds[{i}]", s)))

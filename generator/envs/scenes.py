@@ -25,14 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .code_key import import_closure
+
 SCENE_FILE = "scene.json"  # written next to a cached site.blend; read by load_site_scene
 SCENE_FORMAT = 2
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]  # generator/
-# the sources whose change can change a built site, its start pose or its bounds (relative to
-# generator/; a folder means its .py files), and the packages that build it
-SITE_SOURCES = ("scene", "blender/build.py", "blender/materials.py", "blender/session.py", "blender/render.py",
-                "render_settings.py", "geometry/seeding.py", "geometry/camera.py", "baselines/start_pose.py",
-                "checks.py", "envs/scenes.py")
+# the modules that build a site, its start pose and its bounds (relative to generator/): the
+# key covers them and every module of the package they import (code_key.import_closure),
+# and the versions of the packages that build it
+SITE_ENTRIES = ("scene/__init__.py", "blender/build.py", "baselines/start_pose.py", "envs/scenes.py")
 SITE_PACKAGES = ("bpy", "numpy")
 
 
@@ -70,19 +71,18 @@ def blend_scene(path: str | os.PathLike) -> SceneSpec:
 
 
 def site_code_key(root: Path = PACKAGE_ROOT) -> str:
-    """SHA-256 (hex) of the site generator's source files under ``root`` (SITE_SOURCES: path
-    and bytes of each) and of the versions of SITE_PACKAGES: it changes whenever the code
-    that builds a cached site may have changed."""
+    """SHA-256 (hex) of the site generator's source files under ``root`` (path and bytes of
+    SITE_ENTRIES and of every module of the package they import) and of the versions of
+    SITE_PACKAGES: it changes whenever the code that builds a cached site may have changed."""
+    try:
+        files = import_closure(root, SITE_ENTRIES)
+    except FileNotFoundError as e:
+        raise FileNotFoundError(f"site_code_key: {e} (SITE_ENTRIES in {__file__} lists it)") from None
     h = hashlib.sha256()
-    for rel in SITE_SOURCES:
-        path = root / rel
-        files = sorted(path.glob("*.py")) if path.is_dir() else [path]
-        if not files or not all(f.is_file() for f in files):
-            raise FileNotFoundError(f"site_code_key: {path} is missing (SITE_SOURCES in {__file__} lists it)")
-        for f in files:
-            data = f.read_bytes()
-            h.update(f"{f.relative_to(root).as_posix()}\0{len(data)}\0".encode())
-            h.update(data)
+    for f in files:
+        data = f.read_bytes()
+        h.update(f"{f.relative_to(root).as_posix()}\0{len(data)}\0".encode())
+        h.update(data)
     for name in SITE_PACKAGES:
         h.update(f"{name}=={importlib.metadata.version(name)}\0".encode())
     return h.hexdigest()

@@ -16,7 +16,7 @@ geometry modalities of one frame cast once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class PixelTruth:
         pose = np.asarray(world_from_camera, dtype=np.float64)
         key = (pose.tobytes(), self.geometry.version, self.occluders.version if self.occluders else 0)
         if self._hits is not None and self._key == key and (self._hits.normal is not None or not normals):
-            return self._hits
+            return self._hits if normals or self._hits.normal is None else replace(self._hits, normal=None)
         hits = self._camera.cast(self.geometry, pose, normals=normals)
         if self.occluders is not None:
             hits = nearer(hits, self._camera.cast(self.occluders, pose, normals=normals))

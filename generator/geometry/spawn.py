@@ -55,8 +55,10 @@ def sample_spawn_points(
 
 def respawn_pose(spawn_points: np.ndarray, current_pose: np.ndarray, rng: np.random.Generator,
                  is_free: Callable[[np.ndarray], bool], tries: int = 100) -> np.ndarray:
-    """A pose at a random spawn point (the first of ``tries`` draws that ``is_free``, else the
-    last draw) with a random heading, the pitch of ``current_pose`` kept and no roll."""
+    """A pose at a random spawn point that ``is_free`` (the first of ``tries`` draws that is;
+    after ``tries`` misses, one drawn among all the free spawn points) with a random
+    heading, the pitch of ``current_pose`` kept and no roll. SpawnVolumeError if no spawn
+    point is free (e.g. ``collision_radius`` was raised after the points were sampled)."""
     forward = current_pose[:3, 2]
     limit = portable_math.atan2(0.999, math.sqrt(1.0 - 0.999 * 0.999))  # asin 0.999
     pitch = float(np.clip(portable_math.atan2(forward[2], portable_math.hypot(forward[0], forward[1])), -limit, limit))
@@ -64,5 +66,9 @@ def respawn_pose(spawn_points: np.ndarray, current_pose: np.ndarray, rng: np.ran
         p = spawn_points[rng.integers(len(spawn_points))]
         yaw = rng.uniform(0.0, 2 * math.pi)
         if is_free(p):
-            break
-    return heading_pose(p, yaw, pitch)
+            return heading_pose(p, yaw, pitch)
+    free = [q for q in spawn_points if is_free(q)]
+    if not free:
+        raise SpawnVolumeError(f"none of the {len(spawn_points)} spawn points is free for the camera's current "
+                               "collision radius; lower collision_radius or make a new Simulator with it")
+    return heading_pose(free[rng.integers(len(free))], rng.uniform(0.0, 2 * math.pi), pitch)

@@ -1,0 +1,104 @@
+"""Simulator arguments that used to slip through: a bad constructor argument must not replace
+the loaded scene, a replaced Simulator must say so everywhere, flags are booleans, and
+respawns and heading-based actions stay defined in corner cases."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from generator import Simulator
+from generator.envs.actions import continuous_targets
+from generator.geometry.spawn import SpawnVolumeError
+
+
+@pytest.fixture(scope="module")
+def walls(tmp_path_factory):
+    return scenes.walls_scene(tmp_path_factory.mktemp("guards") / "walls.blend", 24, 16)
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"render_preset": "fast"}, "unknown render preset 'fast'"),
+    ({"instance_names": ["Crate", 3]}, "instance_names must be a list of object names"),
+    ({"geometry_nodes_objects": None}, "geometry_nodes_objects must be a list of object names, got None"),
+    ({"filter_object_names": 7}, "filter_object_names must be a list of object names, got 7"),
+    ({"verbose": "no"}, "verbose must be True or False"),
+])
+def test_a_refused_constructor_leaves_the_loaded_simulator_alive(walls, kw, message):
+    sim = Simulator(walls, points_density=2)
+    before = sim.compute_point_cloud(update_mask=False)[2]
+    with pytest.raises(ValueError, match=message):
+        Simulator(walls, points_density=2, **kw)
+    np.testing.assert_array_equal(sim.compute_point_cloud(update_mask=False)[2], before)
+
+
+def test_a_replaced_simulator_refuses_frame_facts(walls, tmp_path):
+    old = Simulator(walls, points_density=2)
+    assert old.frame_range != (1, 7) and old.fps != 30.0
+    scenes.walls_scene(tmp_path / "other.blend", 24, 16)
+    bpy.context.scene.frame_end, bpy.context.scene.render.fps = 7, 30
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "other.blend"))
+    new = Simulator(tmp_path / "other.blend", points_density=2)
+    assert new.frame_range == (1, 7) and new.fps == 30.0
+    for fact in ("frame_range", "fps"):
+        with pytest.raises(RuntimeError, match="another Simulator"):
+            getattr(old, fact)
+
+
+def test_flags_are_booleans(walls):
+    sim = Simulator(walls, points_density=2)
+    for kw in ({"update_mask": "False"}, {"imshow": 1}):
+        with pytest.raises(ValueError, match=f"^{next(iter(kw))} must be True or False"):
+            sim.compute_point_cloud(**kw)
+    assert sim.coverage == 0.0  # the refused call did not update the mask
+    with pytest.raises(ValueError, match="^normals must be True or False"):
+        sim.render_geometry(normals="no")
+
+
+def test_render_geometry_without_normals_after_a_call_with_them(walls):
+    sim = Simulator(walls, points_density=2)
+    with_normals = sim.render_geometry(normals=True)
+    assert with_normals.normal is not None
+    without = sim.render_geometry(normals=False)
+    assert without.normal is None
+    np.testing.assert_array_equal(without.depth, with_normals.depth)
+
+
+def test_respawn_never_lands_in_geometry(tmp_path):
+    scenes.new_scene(24, 16)
+    scenes.add_plane("Ground", (40, 40), (0, 0, 0))
+    scenes.add_box("Tower", (4, 4, 20), (0, 0, 10))
+    scenes.add_box("CameraSpawn", (12, 12, 4), (0, 0, 3))
+    scenes.look_along_y((0, -15, 3))
+    sim = Simulator(scenes.save(tmp_path / "spawn.blend"), points_density=1, collision_radius=0.3, seed=3)
+    sim.collision_radius = 2.5  # larger than when the spawn points were sampled
+    free = np.array([sim.is_free(p) for p in sim.spawn_points])
+    assert 0 < free.sum() < len(free)  # some spawn points are now too close to the tower or ground
+    for _ in range(20):
+        assert sim.is_free(sim.respawn_camera()[:3, 3])
+    sim.collision_radius = 50.0  # nothing is free any more
+    with pytest.raises(SpawnVolumeError, match="none of the .* spawn points is free"):
+        sim.respawn_camera()
+
+
+@pytest.mark.parametrize("down", [True, False])
+def test_continuous_moves_head_where_the_image_top_points_when_looking_straight_down(down):
+    # a camera looking straight down (up) whose image top points to world +Y (-Y): OpenCV
+    # axes x right, y down the image, z forward
+    z = np.array([0.0, 0.0, -1.0 if down else 1.0])
+    y = np.array([0.0, -1.0, 0.0]) if down else np.array([0.0, 1.0, 0.0])
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+    assert np.isclose(np.linalg.det(pose[:3, :3]), 1.0)
+    _, moved = continuous_targets(pose, np.array([1.0, 0, 0, 0, 0]), 3.0, 22.5)
+    # forward: toward the image's top looking down, its bottom looking up, i.e. +Y both times
+    np.testing.assert_allclose(moved[:3, 3], [0.0, 3.0, 0.0], atol=1e-12)
+    _, right = continuous_targets(pose, np.array([0, 1.0, 0, 0, 0]), 3.0, 22.5)
+    # right: along the image's x axis, horizontal
+    np.testing.assert_allclose(right[:3, 3], 3.0 * pose[:3, 0], atol=1e-12)
+    # a yaw turn from there turns about world Z from that heading (no jump to +X)
+    turned, _ = continuous_targets(pose, np.array([0, 0, 0, 1.0, 0]), 3.0, 22.5)
+    heading = math.degrees(math.atan2(turned[1, 2], turned[0, 2]))
+    assert math.isclose(heading, 90.0 - 22.5, abs_tol=1e-9)
