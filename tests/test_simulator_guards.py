@@ -1,8 +1,6 @@
 """Simulator arguments that used to slip through: a bad constructor argument must not replace
 the loaded scene, a replaced Simulator must say so everywhere, flags are booleans, and
-respawns and heading-based actions stay defined in corner cases."""
-
-import math
+respawns never land in geometry."""
 
 import bpy
 import numpy as np
@@ -10,7 +8,6 @@ import pytest
 
 import scenes
 from generator import Simulator
-from generator.envs.actions import continuous_targets
 from generator.geometry.spawn import SpawnVolumeError
 
 
@@ -81,24 +78,3 @@ def test_respawn_never_lands_in_geometry(tmp_path):
     sim.collision_radius = 50.0  # nothing is free any more
     with pytest.raises(SpawnVolumeError, match="none of the .* spawn points is free"):
         sim.respawn_camera()
-
-
-@pytest.mark.parametrize("down", [True, False])
-def test_continuous_moves_head_where_the_image_top_points_when_looking_straight_down(down):
-    # a camera looking straight down (up) whose image top points to world +Y (-Y): OpenCV
-    # axes x right, y down the image, z forward
-    z = np.array([0.0, 0.0, -1.0 if down else 1.0])
-    y = np.array([0.0, -1.0, 0.0]) if down else np.array([0.0, 1.0, 0.0])
-    pose = np.eye(4)
-    pose[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    assert np.isclose(np.linalg.det(pose[:3, :3]), 1.0)
-    _, moved = continuous_targets(pose, np.array([1.0, 0, 0, 0, 0]), 3.0, 22.5)
-    # forward: toward the image's top looking down, its bottom looking up, i.e. +Y both times
-    np.testing.assert_allclose(moved[:3, 3], [0.0, 3.0, 0.0], atol=1e-12)
-    _, right = continuous_targets(pose, np.array([0, 1.0, 0, 0, 0]), 3.0, 22.5)
-    # right: along the image's x axis, horizontal
-    np.testing.assert_allclose(right[:3, 3], 3.0 * pose[:3, 0], atol=1e-12)
-    # a yaw turn from there turns about world Z from that heading (no jump to +X)
-    turned, _ = continuous_targets(pose, np.array([0, 0, 0, 1.0, 0]), 3.0, 22.5)
-    heading = math.degrees(math.atan2(turned[1, 2], turned[0, 2]))
-    assert math.isclose(heading, 90.0 - 22.5, abs_tol=1e-9)
