@@ -11,7 +11,8 @@ from exporters.ground_truth import GroundTruthError, read_ground_truth, read_poi
 from exporters.manifest import read_manifest, stage_count, timeline_stage
 
 from .coverage import CoverageScorer, Poses, coverage_auc, read_poses
-from .inputs import Cloud, InputError, check_label_range, check_metres, ply_cloud, read_cloud, read_label_table
+from .inputs import (Cloud, InputError, check_label_range, check_metres, check_sweep, ply_cloud, read_cloud,
+                     read_label_table)
 from .metrics import (DEFAULT_SWEEP, DEFAULT_TAU, Neighbours, fscore, iou_per_class, match_categories,
                       reconstruction_metrics, voxel_downsample)
 
@@ -99,6 +100,7 @@ def score_reconstruction(pred: Cloud | str | Path, gt: Cloud | str | Path, tau: 
     Returns (results, context): results is the JSON document (metrics, parameters,
     versions); context holds the arrays used (for the coloured PLY)."""
     check_metres("tau", tau)
+    sweep = check_sweep(sweep)
     if crop_margin is not None:
         check_metres("crop_margin", crop_margin, or_equal=True)
     if voxel is not None:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .inputs import InputError, regular_file
+from .inputs import Cloud, InputError, load_array_file, regular_file
 
 CLOUD_CLASSES = {"added": 1, "removed": 2}  # the codes of exporters.changes.STATUS
 DEFAULT_TAU = 0.1  # metres
@@ -120,40 +120,49 @@ def _check_stages(changes, seed: Path, before: int, after: int) -> None:
 
 def read_change_prediction(path: Path) -> dict:
     """{"xyz", "change"} (a change cloud) or {"masks"} from an NPZ or PLY (module docstring)."""
-    from exporters.ply import read_ply
-
     path = regular_file(path, "--pred")
-    try:
-        if path.suffix.lower() == ".ply":
-            v = read_ply(path).vertex
-            data = {"xyz": np.stack([v[c] for c in "xyz"], axis=1), "change": v["change"]}
-        else:
-            z = np.load(path, allow_pickle=False)
-            if not hasattr(z, "files"):
-                raise InputError(f"--pred {path}: holds one array; give an NPZ with masks (T, H, W), or xyz and change")
-            with z:
-                data = {k: z[k] for k in z.files if k in ("xyz", "change", "masks")}
-    except KeyError as exc:
-        raise InputError(f"--pred {path}: no {exc} property; a change cloud has x, y, z and change "
-                         "(1 added, 2 removed)") from None
-    except (OSError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"--pred {path}: not a readable NPZ or PLY ({exc.__class__.__name__})") from None
+    data = _read_ply_change(path) if path.suffix.lower() == ".ply" else load_array_file(path, ("xyz", "change", "masks"))
+    if not isinstance(data, dict):
+        raise InputError(f"--pred {path}: holds one array; give an NPZ with masks (T, H, W), or xyz and change")
     if "masks" in data:
-        masks = np.asarray(data["masks"])
-        if masks.dtype.kind != "b" and not (masks.dtype.kind in "iuf" and np.isin(masks, (0, 1)).all()):
-            raise InputError(f"--pred {path}: masks must be booleans (or 0/1), got {masks.dtype} values such as "
-                             f"{masks.flat[np.flatnonzero(~np.isin(masks, (0, 1)))[0]]!r}; threshold probabilities first")
-        return {"masks": masks.astype(bool)}
+        return {"masks": _checked_masks(np.asarray(data["masks"]), path)}
     if "xyz" not in data or "change" not in data:
         raise InputError(f"--pred {path}: needs xyz (N, 3) and change (N,) (1 added, 2 removed), or masks (T, H, W)")
-    xyz, change = np.asarray(data["xyz"], np.float64), np.asarray(data["change"])
-    if xyz.ndim != 2 or xyz.shape[1] != 3 or change.shape != (len(xyz),) or not np.isfinite(xyz).all():
-        raise InputError(f"--pred {path}: xyz must be (N, 3) finite metres and change (N,), got {xyz.shape} and {change.shape}")
+    xyz = Cloud(data["xyz"], None, f"--pred {path}: xyz").points  # (N, 3) finite real metres, as any cloud
+    change = np.asarray(data["change"])
+    if change.shape != (len(xyz),) or change.dtype.kind not in "iuf":
+        raise InputError(f"--pred {path}: change must be (N,) numbers for {len(xyz)} points, got {change.dtype} "
+                         f"{change.shape}")
     if not np.isin(change, list(CLOUD_CLASSES.values())).all():
         raise InputError(f"--pred {path}: change values must be 1 (added) or 2 (removed)")
     return {"xyz": xyz, "change": change.astype(np.int64)}
+
+
+def _read_ply_change(path: Path) -> dict:
+    """{"xyz", "change"} of a PLY change cloud (vertex x, y, z, change)."""
+    from exporters.ply import PlyError, read_ply
+
+    try:
+        v = read_ply(path).vertex
+    except PlyError as exc:
+        raise InputError(f"--pred {exc}") from None
+    if "change" not in v or not isinstance(v["change"], np.ndarray):
+        raise InputError(f"--pred {path}: no change property (one number per vertex); a change cloud has x, y, z "
+                         "and change (1 added, 2 removed)")
+    return {"xyz": np.stack([v[c] for c in "xyz"], axis=1), "change": v["change"]}
+
+
+def _checked_masks(masks: np.ndarray, path: Path) -> np.ndarray:
+    """``masks`` as bool: booleans, or numbers that are all 0 or 1."""
+    if masks.dtype.kind == "b":
+        return masks
+    if masks.dtype.kind not in "iuf":
+        raise InputError(f"--pred {path}: masks must be booleans (or 0/1), got dtype {masks.dtype}")
+    bad = np.flatnonzero(~np.isin(masks, (0, 1)))
+    if bad.size:
+        raise InputError(f"--pred {path}: masks must be booleans (or 0/1), got {masks.dtype} values such as "
+                         f"{masks.flat[bad[0]]!r}; threshold probabilities first")
+    return masks.astype(bool)
 
 
 def score_change(gt: str | Path, before: int, after: int, pred: str | Path, tau: float = DEFAULT_TAU,

@@ -12,6 +12,7 @@ import numpy as np
 
 from exporters.ply import PlyData, PlyError, read_ply
 from generator.checks import check_number
+from trajectories.base import ArrayFileError, load_arrays
 
 
 class InputError(ValueError):
@@ -27,6 +28,23 @@ def check_metres(name: str, value, low: float = 0.0, *, or_equal: bool = False) 
         return check_number(name, value, low, open_low=not or_equal, valid=valid)
     except ValueError as exc:
         raise InputError(str(exc)) from None
+
+
+def check_sweep(sweep) -> tuple[float, ...]:
+    """The thresholds of a precision/recall sweep, each checked as :func:`check_metres` checks
+    one (what the CLI's ``--sweep`` accepts); an empty sweep is allowed (no sweep figures)."""
+    if isinstance(sweep, (str, bytes)) or not hasattr(sweep, "__iter__"):
+        raise InputError(f"sweep must be a sequence of positive numbers of metres, got {sweep!r}")
+    return tuple(check_metres(f"sweep[{i}]", t) for i, t in enumerate(sweep))
+
+
+def load_array_file(path: Path, keys: tuple[str, ...] | None = None) -> np.ndarray | dict[str, np.ndarray]:
+    """:func:`trajectories.base.load_arrays` (an .npy's array or an .npz's members, read now),
+    any decode failure an :class:`InputError` naming the file."""
+    try:
+        return load_arrays(path, keys)
+    except ArrayFileError as exc:
+        raise InputError(f"{exc}; write it with numpy.save or numpy.savez") from None
 
 
 MAX_COORDINATE = 1e9  # metres: beyond it a coordinate is refused (squared distances must stay finite)
@@ -173,20 +191,7 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
         elif suffix == ".npy":
             points, labels = _split_columns(_npy(path), path)
         elif suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                keys = list(z.keys())
-                if "points" in keys:
-                    points = z["points"]
-                    labels = z["labels"] if "labels" in keys else (z["label"] if "label" in keys else None)
-                    if points.ndim != 2 or points.shape[1] != 3:
-                        raise InputError(f"{path}: 'points' has shape {points.shape}; expected (N, 3)")
-                    if labels is not None and labels.shape != (len(points),):
-                        raise InputError(f"{path}: 'labels' has shape {labels.shape} for {len(points)} points; "
-                                         "give one label per point")
-                elif len(keys) == 1:
-                    points, labels = _split_columns(z[keys[0]], path)
-                else:
-                    raise InputError(f"{path}: NPZ needs an array 'points' (N, 3) and optionally 'labels' (N,); it has {keys}")
+            points, labels = _npz_columns(load_array_file(path), path)
         elif suffix in CLOUD_SUFFIXES:
             points, labels = _text_table(path)
         else:
@@ -196,6 +201,24 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
             raise
         raise InputError(f"{path}: unreadable ({exc.__class__.__name__}: {str(exc).splitlines()[0] if str(exc) else ''})") from None
     return _checked_cloud(path, points, labels, file_names, dynamic, observable, labels_path, label_names)
+
+
+def _npz_columns(arrays, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """points and labels of an NPZ's members: ``points`` [+ ``labels``], or a single (N, 3|4) array."""
+    if not isinstance(arrays, dict):
+        raise InputError(f"{path}: an NPY array under an .npz name; rename it .npy")
+    if "points" not in arrays:
+        if len(arrays) != 1:
+            raise InputError(f"{path}: NPZ needs an array 'points' (N, 3) and optionally 'labels' (N,); it has "
+                             f"{list(arrays)}")
+        return _split_columns(next(iter(arrays.values())), path)
+    points, labels = arrays["points"], arrays.get("labels", arrays.get("label"))
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise InputError(f"{path}: 'points' has shape {points.shape}; expected (N, 3)")
+    if labels is not None and labels.shape != (len(points),):
+        raise InputError(f"{path}: 'labels' has shape {labels.shape} for {len(points)} points; "
+                         "give one label per point")
+    return points, labels
 
 
 def ply_cloud(ply: PlyData, path: str | Path) -> Cloud:
@@ -213,9 +236,8 @@ def _checked_cloud(path: Path, points, labels, file_names, dynamic, observable, 
         raise InputError(f"{path}: coordinates are not real numbers (dtype {points.dtype})")
     if len(points) == 0:
         raise InputError(f"{path}: empty point cloud")
-    if labels is not None and label_names is not None and file_names is not None and [n.lower() for n in label_names] != [n.lower() for n in file_names]:
-        raise InputError(f"{path}: its label table {file_names} differs from the ground truth's {label_names}; "
-                         "label ids would not match: relabel it with the ground truth's table (labels.json)")
+    if labels is not None or labels_path is not None:  # labels from the file or from a label file: ids of its table
+        _check_file_table(path, file_names, label_names)
     if labels_path is not None:
         if labels is not None:
             raise InputError(f"{path} already has labels; do not pass a separate label file too")
@@ -227,8 +249,16 @@ def _checked_cloud(path: Path, points, labels, file_names, dynamic, observable, 
     return Cloud(points, labels, str(path), file_names, dynamic, observable)
 
 
+def _check_file_table(path: Path, file_names: list[str] | None, label_names: list[str] | None) -> None:
+    """A label table the file states (a PLY's ``comment labels``) must be the ground truth's."""
+    if file_names is None or label_names is None or [n.lower() for n in label_names] == [n.lower() for n in file_names]:
+        return  # no table stated, or the same names (case aside)
+    raise InputError(f"{path}: its label table {file_names} differs from the ground truth's {label_names}; "
+                     "label ids would not match: relabel it with the ground truth's table (labels.json)")
+
+
 def _npy(path: Path) -> np.ndarray:
-    array = np.load(path, allow_pickle=False, mmap_mode=None)
+    array = load_array_file(path, keys=())  # an NPZ's members are not read: it is refused
     if not isinstance(array, np.ndarray):
         raise InputError(f"{path}: an NPZ archive under an .npy name; rename it .npz")
     return array
@@ -237,12 +267,7 @@ def _npy(path: Path) -> np.ndarray:
 def _read_label_file(path: Path) -> np.ndarray:
     path = regular_file(path, "label")
     if path.suffix.lower() == ".npy":
-        try:
-            arr = _npy(path)
-        except (OSError, ValueError, EOFError) as exc:
-            if isinstance(exc, InputError):
-                raise
-            raise InputError(f"{path}: unreadable label file ({exc.__class__.__name__})") from None
+        arr = _npy(path)
         return arr.reshape(-1) if arr.ndim == 2 and 1 in arr.shape else arr
     text = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     return np.array(text)
@@ -256,6 +281,7 @@ def _label_ids(labels: np.ndarray, names: list[str] | None, path: Path) -> np.nd
             return _label_ids(labels.astype(np.float64), names, path)
         return _names_to_ids(labels, names, path)
     if labels.dtype.kind == "f":
+        labels = labels.astype(np.float64)  # the range test in float16 would overflow 2 ** 31
         if not np.isfinite(labels).all() or np.any(labels != np.round(labels)) or np.abs(labels).max(initial=0) >= 2 ** 31:
             raise InputError(f"{path}: labels must be integer ids (-1 = unlabelled) or class names")
     if labels.dtype.kind not in "iuf":

@@ -17,7 +17,7 @@ import numpy as np
 
 from generator.geometry.voxels import majority_labels
 
-from .inputs import Cloud, InputError, check_metres
+from .inputs import Cloud, InputError, check_metres, check_sweep
 
 
 DEFAULT_TAU = 0.1
@@ -166,6 +166,7 @@ def reconstruction_metrics(pred: np.ndarray, gt: np.ndarray, pred_labels: np.nda
     pred_cloud, gt_cloud = Cloud(pred, pred_labels, "pred"), Cloud(gt, gt_labels, "gt")  # checked: one-line errors
     pred, gt, pred_labels, gt_labels = pred_cloud.points, gt_cloud.points, pred_cloud.labels, gt_cloud.labels
     check_metres("tau", tau)
+    sweep = check_sweep(sweep)
     if len(pred) == 0 or len(gt) == 0:
         raise InputError("both clouds need at least one point")
     nn = neighbours if neighbours is not None else Neighbours.compute(pred, gt)

@@ -23,7 +23,7 @@ import numpy as np
 
 from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
 
-from .inputs import InputError, regular_file
+from .inputs import InputError, load_array_file, regular_file
 
 THRESHOLDS = (1, 2, 4, 8, 16)
 MAX_PIXELS = 1e6  # |x|, |y| of a visible predicted position: beyond it, refused (not a pixel position)
@@ -62,13 +62,10 @@ def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.nd
         if path.suffix.lower() != ".npz":
             raise InputError(f"{path}: predicted tracks must be an NPZ with arrays 'tracks' (Q, T, 2) and "
                              "'occluded' (Q, T) (numpy.savez); got a " + (path.suffix or "suffix-less") + " file")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                if not hasattr(z, "files"):
-                    raise ValueError("not an NPZ archive")
-                pred = {k: z[k] for k in z.files if k in ("tracks", "occluded")}
-        except (OSError, ValueError, EOFError) as exc:
-            raise InputError(f"{path}: unreadable NPZ ({exc.__class__.__name__}); write it with numpy.savez") from None
+        pred = load_array_file(path, ("tracks", "occluded"))
+        if not isinstance(pred, dict):
+            raise InputError(f"{path}: holds one array (an .npy under an .npz name); write 'tracks' and 'occluded' "
+                             "with numpy.savez")
     if "tracks" not in pred or "occluded" not in pred:
         raise InputError(f"{source}: needs arrays 'tracks' (Q, T, 2) and 'occluded' (Q, T)")
     tracks, occluded = np.asarray(pred["tracks"]), np.asarray(pred["occluded"])

@@ -124,13 +124,16 @@ def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
             elif words[0] == "comment":
                 comments.append(line.decode("ascii", errors="replace").strip()[8:])
             elif words[0] == "element":
+                _unique(words[1] in [e.name for e in elements], f"element {words[1]!r}", path)
                 elements.append(_Element(words[1], int(words[2]), []))
                 if elements[-1].count < 0:
                     raise PlyError(f"{path}: element {words[1]!r} has a negative count ({words[2]})")
-            elif words[0] == "property" and words[1] == "list":
-                elements[-1].props.append((words[4], _TYPES[words[3]], _TYPES[words[2]]))
             elif words[0] == "property":
-                elements[-1].props.append((words[2], _TYPES[words[1]], None))
+                listed = words[1] == "list"
+                prop = (words[4], _TYPES[words[3]], _TYPES[words[2]]) if listed else (words[2], _TYPES[words[1]], None)
+                _unique(prop[0] in [p[0] for p in elements[-1].props],
+                        f"property {prop[0]!r} of element {elements[-1].name!r}", path)
+                elements[-1].props.append(prop)
             else:
                 raise PlyError(f"{path}: unexpected PLY header line {line.strip()[:80]!r}")
         except (IndexError, KeyError, ValueError) as exc:
@@ -140,6 +143,12 @@ def _parse_header(f, path: Path) -> tuple[str, list[_Element], list[str]]:
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise PlyError(f"{path}: unknown PLY format {fmt!r}")
     return fmt, elements, comments
+
+
+def _unique(twice: bool, what: str, path: Path) -> None:
+    """Refuse a header naming an element, or a property of one element, twice (which would be meant?)."""
+    if twice:
+        raise PlyError(f"{path}: the PLY header names {what} twice; give each a name of its own")
 
 
 def read_ply_comments(path: str | Path) -> list[str]:
@@ -271,7 +280,8 @@ def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -
                 table = np.array([r.split() for r in rows], dtype=np.float64).reshape(el.count, -1) if el.count else np.zeros((0, len(el.props)))
                 if table.shape[1] != len(el.props):
                     raise PlyError(f"{path}: element {el.name!r} rows have {table.shape[1]} values, expected {len(el.props)}")
-                data[el.name] = {n: table[:, j].astype(code) for j, (n, code, _) in enumerate(el.props)}
+                data[el.name] = {n: _ascii_values(table[:, j], code, n, el.name, path)
+                                 for j, (n, code, _) in enumerate(el.props)}
                 continue
             out = {n: [] for n, _, _ in el.props}
             for r in rows:
@@ -284,8 +294,25 @@ def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -
                         k = int(words[j])
                         out[name].append(np.array(words[j + 1:j + 1 + k], dtype=np.int64))
                         j += 1 + k
-            data[el.name] = {n: (v if c is not None else np.array(v, dtype=code)) for (n, code, c), v in zip(el.props, out.values())}
+            data[el.name] = {n: (v if c is not None else _ascii_values(np.array(v, np.float64), code, n, el.name, path))
+                             for (n, code, c), v in zip(el.props, out.values())}
         except (ValueError, IndexError) as exc:
             if isinstance(exc, PlyError):
                 raise
             raise PlyError(f"{path}: malformed ASCII PLY row in element {el.name!r}") from exc
+
+
+def _ascii_values(values: np.ndarray, code: str, name: str, element: str, path: Path) -> np.ndarray:
+    """float64 ``values`` of an ASCII property as its type ``code``; PlyError for a value the
+    type cannot hold (an integer type: a fraction, NaN or a value out of its range; float: beyond float32's)."""
+    dtype = np.dtype(code)
+    if dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        bad = ~((values == np.round(values)) & (values >= info.min) & (values <= info.max))
+    else:
+        bad = np.isfinite(values) & (np.abs(values) > np.finfo(dtype).max)
+    if bad.any():
+        row = int(np.argmax(bad))
+        raise PlyError(f"{path}: element {element!r} property {name!r} holds {float(values[row])!r} (row {row}), "
+                       f"which type {_NAMES[code]} cannot hold; fix the value or the property's declared type")
+    return values.astype(dtype)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -84,22 +86,22 @@ class Trajectory:
         need = ("poses", "timestamps", "actions", "header")
         what = f"a .npz with arrays {', '.join(need)}, as Trajectory.save writes"
         try:
-            z = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}; give {what}") from None
-        if not hasattr(z, "files"):  # a .npy array
+            z = load_arrays(path, need)
+        except ArrayFileError as exc:
+            raise TrajectoryError(f"not a trajectory file: {exc}; give {what}") from None
+        if not isinstance(z, dict):  # a .npy array
             raise TrajectoryError(f"not a trajectory file: {path} holds one array; give {what}")
+        missing = [k for k in need if k not in z]
+        if missing:
+            raise TrajectoryError(f"not a trajectory file: {path} has no {', '.join(missing)}; give {what}")
         try:
-            with z:
-                missing = [k for k in need if k not in z.files]
-                if missing:
-                    raise TrajectoryError(f"not a trajectory file: {path} has no {', '.join(missing)}; give {what}")
-                header = json.loads(str(z["header"]))
-                poses, times, actions = z["poses"], z["timestamps"], [str(a) for a in z["actions"]]
-        except (OSError, ValueError) as exc:
-            if isinstance(exc, TrajectoryError):
-                raise
+            header = json.loads(str(z["header"]))
+        except (ValueError, RecursionError) as exc:
             raise TrajectoryError(f"not a trajectory file ({exc.__class__.__name__}): {path}; give {what}") from None
+        poses, times, actions = z["poses"], z["timestamps"], z["actions"]
+        if actions.ndim != 1:
+            raise TrajectoryError(f"inconsistent trajectory arrays in {path}: actions must be (T - 1,) strings, got "
+                                  f"shape {actions.shape}")
         if not isinstance(header, dict) or not isinstance(header.get("kind"), str):
             raise TrajectoryError(f"not a trajectory file: the header of {path} is not a JSON object with format and kind")
         if header.get("format") != FORMAT:
@@ -110,7 +112,38 @@ class Trajectory:
         if times.shape != (len(poses),):
             raise TrajectoryError(f"inconsistent trajectory arrays in {path}: {len(poses)} poses but timestamps of "
                                   f"shape {times.shape}")
-        return cls(poses, times, header["kind"], actions, header.get("params", {}))
+        return cls(poses, times, header["kind"], [str(a) for a in actions], header.get("params", {}))
+
+
+# how numpy, zipfile and zlib fail on a damaged .npy/.npz: an empty file raises EOFError, a
+# truncated archive zipfile.BadZipFile, a damaged member zlib.error or BadZipFile (CRC), an
+# encrypted member or an unknown compression RuntimeError (NotImplementedError), a bad header
+# or pickled data ValueError
+ARRAY_FILE_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, RuntimeError)
+
+
+class ArrayFileError(ValueError):
+    """An .npy/.npz file that numpy cannot decode (one line: the file and why)."""
+
+
+def load_arrays(path: str | Path, keys: tuple[str, ...] | None = None) -> np.ndarray | dict[str, np.ndarray]:
+    """The array of an .npy file, or {name: array} of an .npz's members (only those named in
+    ``keys`` when given), all read now (no pickles), so that any decode failure, whichever
+    library raises it, is one :class:`ArrayFileError` naming the file. The one reader of the
+    NPY/NPZ files a user gives (trajectories, and every input of ``python -m evaluation``)."""
+    try:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            return loaded
+        with loaded as z:
+            arrays = {k: z[k] for k in z.files if keys is None or k in keys}
+    except ARRAY_FILE_ERRORS as exc:
+        why = str(exc).splitlines()[0][:200] if str(exc) else ""
+        raise ArrayFileError(f"{path}: not a readable NPY/NPZ file ({exc.__class__.__name__}: {why})") from None
+    for k, v in arrays.items():
+        if not isinstance(v, np.ndarray):  # a member not written by numpy.save: numpy returns its bytes
+            raise ArrayFileError(f"{path}: member {k!r} is not a NumPy array (write the file with numpy.savez)")
+    return arrays
 
 
 def timestamps(n: int, fps: float) -> np.ndarray:
