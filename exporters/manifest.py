@@ -42,19 +42,34 @@ def sha256_many(paths: list[Path]) -> list[str]:
         return list(pool.map(sha256, paths))
 
 
-def _listed_files(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.rglob("*")
-                  if p.is_file() and not p.is_symlink() and p.name not in (MANIFEST, PARTIAL_MARKER))
+def _entries(folder: Path) -> tuple[list[str], dict[str, str]]:
+    """What ``folder`` holds apart from its own manifest.json and partial marker, as relative
+    paths: (its regular files, which a manifest lists; {every other entry: what it is}, which
+    no manifest lists: a symlink, a special file such as a FIFO, an empty folder). Symlinks
+    are never followed."""
+    files, others = [], {}
+    for root, dirs, names in os.walk(folder):
+        base = Path(root)
+        if base != folder and not dirs and not names:
+            others[base.relative_to(folder).as_posix()] = "an empty folder"
+        for p in [base / n for n in dirs if (base / n).is_symlink()] + [base / n for n in names]:
+            rel = p.relative_to(folder).as_posix()
+            if p.is_symlink() or not p.is_file():
+                others[rel] = "a symlink" if p.is_symlink() else "not a regular file"
+            elif rel not in (MANIFEST, PARTIAL_MARKER):
+                files.append(rel)
+    return sorted(files), dict(sorted(others.items()))
 
 
 def write_manifest(folder: str | Path, info: dict) -> Path:
     """Write ``manifest.json`` = ``info`` + ``files``: {relative path: {bytes, sha256, mtime_ns}},
     atomically (a temporary file renamed into place), so a manifest is whole or absent."""
     folder = Path(folder)
-    paths = _listed_files(folder)
+    rels = _entries(folder)[0]
+    paths = [folder / rel for rel in rels]
     stats = [p.stat() for p in paths]
-    files = {p.relative_to(folder).as_posix(): {"bytes": st.st_size, "sha256": digest, "mtime_ns": st.st_mtime_ns}
-             for p, st, digest in zip(paths, stats, sha256_many(paths))}
+    files = {rel: {"bytes": st.st_size, "sha256": digest, "mtime_ns": st.st_mtime_ns}
+             for rel, st, digest in zip(rels, stats, sha256_many(paths))}
     path = folder / MANIFEST
     tmp = folder / f".{MANIFEST}.tmp"
     with open(tmp, "w") as f:
@@ -97,7 +112,7 @@ def load_manifest(folder: str | Path) -> dict:
         raise ManifestError(f"{path}: {path.stat().st_size} bytes, too large to be a manifest")
     try:
         manifest = json.loads(path.read_bytes())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError, RecursionError) as exc:  # ValueError: bad UTF-8 or JSON, an integer too long
         raise ManifestError(f"{path}: unreadable ({exc.__class__.__name__})") from None
     problem = _schema_problem(manifest)
     if problem:
@@ -143,9 +158,11 @@ def seed_folder_containing(path: str | Path) -> Path | None:
 
 def check_files(folder: str | Path, manifest: dict, hashes: bool | None = True) -> list[str]:
     """One line per file that differs from ``manifest``: missing, other size, other sha256,
-    and files the manifest does not list. ``hashes``: True hashes every file; False checks
-    sizes only; None hashes the files whose modification time differs from the manifest's
-    (a file written after the manifest, or copied without its times)."""
+    and every entry the manifest does not list (a file, a symlink, a FIFO, an empty folder;
+    only the folder's own manifest.json and partial marker are not listed). ``hashes``: True
+    hashes every file; False checks sizes only; None hashes the files whose modification time
+    differs from the manifest's (a file written after the manifest, or copied without its
+    times)."""
     folder = Path(folder)
     found: dict[str, str] = {}
     to_hash = []
@@ -164,9 +181,9 @@ def check_files(folder: str | Path, manifest: dict, hashes: bool | None = True) 
         if digest != listed[rel]["sha256"]:
             found[rel] = f"{rel}: contents changed (sha256 differs from the manifest)"
     problems = [found[rel] for rel in listed if rel in found]  # in the manifest's order
-    for p in _listed_files(folder):
-        if p.relative_to(folder).as_posix() not in listed:
-            problems.append(f"{p.relative_to(folder).as_posix()}: not listed in the manifest")
+    files, others = _entries(folder)
+    problems += [f"{rel}: not listed in the manifest" for rel in files if rel not in listed]
+    problems += [f"{rel}: {what}, not listed in the manifest" for rel, what in others.items() if rel not in listed]
     return problems
 
 

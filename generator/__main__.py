@@ -15,7 +15,7 @@ from pathlib import Path
 from trajectories import KINDS
 
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, RunConfig
-from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS
+from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS, MIN_CPUS_PER_SEED
 from .checks import MAX_SEED
 from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
                        resolution)
@@ -91,9 +91,11 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--ray-address", default=None,
                    help="ray: the cluster's HOST:PORT as `ray start --head` prints it, or auto (default: "
                         "$RAY_ADDRESS if set, else a local Ray started for this run)")
-    p.add_argument("--cpus-per-seed", type=positive_float(), default=None,
-                   help=f"ray: CPUs each seed reserves; a node runs (its CPUs / N) seeds at once "
-                        f"(default: {DEFAULT_CPUS_PER_SEED:g})")
+    cpus = positive_float(f"a positive number of CPUs, at least {MIN_CPUS_PER_SEED:g} (the finest fraction Ray "
+                          "reserves)", at_least=MIN_CPUS_PER_SEED)
+    p.add_argument("--cpus-per-seed", type=cpus, default=None,
+                   help=f"ray: CPUs each seed reserves, at least {MIN_CPUS_PER_SEED:g}; a node runs (its CPUs / N) "
+                        f"seeds at once (default: {DEFAULT_CPUS_PER_SEED:g})")
     p.add_argument("--retries", type=int_at_least(0, "retries", 100), default=None,
                    help=f"ray: how many times a seed is run again when its worker process or its node dies "
                         f"(default: {DEFAULT_RETRIES})")

@@ -62,15 +62,15 @@ def int_at_least(minimum: int, what: str, maximum: int | None = None):
     return parse
 
 
-def positive_float(what: str = "a positive number", zero: bool = False):
-    """An argparse type: a finite number > 0 (>= 0 with ``zero``)."""
+def positive_float(what: str = "a positive number", zero: bool = False, at_least: float = 0.0):
+    """An argparse type: a finite number > 0 (>= 0 with ``zero``), and >= ``at_least``."""
 
     def parse(text: str) -> float:
         try:
             v = float(text)
         except ValueError:
             v = math.nan
-        if not ((v >= 0 if zero else v > 0) and math.isfinite(v)):
+        if not ((v >= 0 if zero else v > 0) and v >= at_least and math.isfinite(v)):
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
         return v + 0.0  # -0 as 0
 

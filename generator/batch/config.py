@@ -74,17 +74,31 @@ class RunConfig:
         return self
 
     def to_dict(self) -> dict:
+        """The config stored in every seed's manifest (its outputs in table order: canonical_config)."""
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
         if self.phases == 1:
             del d["phases"]  # a one-stage run's config reads as before timelines existed
-        return d
+        return canonical_config(d)
 
     @classmethod
     def from_dict(cls, d: dict) -> "RunConfig":
         return cls(**(d | {"resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"]),
                            "outputs": tuple(d.get("outputs", ()))}))
+
+
+def canonical_config(config: dict) -> dict:
+    """``config`` (RunConfig.to_dict(), or a manifest's config) with its outputs in the order of
+    the modality table, the order they are written in whatever order --outputs names them
+    (runs before 2026-11-24 stored them as given; they compare equal now); outputs naming
+    anything not in the table are left as they are."""
+    from exporters.modalities import MODALITIES
+
+    outputs, table = config.get("outputs"), list(MODALITIES)
+    if not isinstance(outputs, list) or not all(isinstance(n, str) and n in MODALITIES for n in outputs):
+        return config
+    return config | {"outputs": sorted(outputs, key=table.index)}
 
 
 def site_area_lower_bound(preset: str) -> float:

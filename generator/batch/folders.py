@@ -20,12 +20,15 @@ import json
 import os
 import shutil
 import socket
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from exporters import FORMAT_VERSION
 from exporters.manifest import PARTIAL_MARKER, ManifestError, check_files, load_manifest
+
+from .config import canonical_config
 
 
 def seed_folder(out: Path, seed: int) -> Path:
@@ -63,18 +66,20 @@ class SeedLock:
         return cls._try(lock_file(out, seed), f"{os.getpid()}")
 
     @classmethod
-    def wait_for_work(cls, out: Path, seed: int, seconds: float) -> "SeedLock | None":
+    def wait_for_work(cls, out: Path, seed: int, seconds: float,
+                      cancelled: threading.Event | None = None) -> "SeedLock | None":
         """The seed's work lock, waiting up to ``seconds`` while a process of an earlier
         attempt still holds it (a worker that outlives its run: Ray kills a task's processes
         1-3 s after its driver is killed with SIGKILL, and the driver's own lock is released at
-        once); None if it is still held then. The file names its holder: 'host H pid P' (the
-        holder may be on another node). OSError as :meth:`try_acquire`."""
+        once); None if it is still held then, or once ``cancelled`` is set. The file names its
+        holder: 'host H pid P' (the holder may be on another node). OSError as
+        :meth:`try_acquire`."""
         deadline = time.monotonic() + seconds
+        cancelled = cancelled or threading.Event()
         while True:
             lock = cls._try(work_lock_file(out, seed), f"host {socket.gethostname()} pid {os.getpid()}")
-            if lock is not None or time.monotonic() >= deadline:
+            if lock is not None or time.monotonic() >= deadline or cancelled.wait(0.05):
                 return lock
-            time.sleep(0.05)
 
     @classmethod
     def _try(cls, path: Path, holder: str) -> "SeedLock | None":
@@ -135,7 +140,8 @@ def _differences(old: dict, new: dict) -> str:
 
 def decide(out: Path, seed: int, config: dict, overwrite: bool, repair: bool, hashes: bool | None) -> Decision:
     """What to do with ``seed`` given what ``out`` holds; call it holding the seed's lock.
-    ``hashes`` as in ``exporters.manifest.check_files`` (True with --verify or --repair)."""
+    ``config``: RunConfig.to_dict(). ``hashes`` as in ``exporters.manifest.check_files`` (True
+    with --verify or --repair)."""
     final = seed_folder(out, seed)
     if not os.path.lexists(final):
         return Decision("run", "")
@@ -149,8 +155,9 @@ def decide(out: Path, seed: int, config: dict, overwrite: bool, repair: bool, ha
         return Decision("conflict", f"{final}: {what}; left alone: move it away or choose another --out")
     if overwrite:
         return Decision("run", "replacing the complete seed (--overwrite)", replace=True)
-    if manifest["format_version"] != FORMAT_VERSION or manifest["config"] != config or manifest["seed"] != seed:
-        old = {"format_version": manifest["format_version"], "seed": manifest["seed"], **manifest["config"]}
+    stored = canonical_config(manifest["config"])
+    if manifest["format_version"] != FORMAT_VERSION or stored != config or manifest["seed"] != seed:
+        old = {"format_version": manifest["format_version"], "seed": manifest["seed"], **stored}
         new = {"format_version": FORMAT_VERSION, "seed": seed, **config}
         return Decision("conflict", f"complete with other parameters: {_differences(old, new)}; left alone: "
                                     "use --overwrite to replace it, or another --out")

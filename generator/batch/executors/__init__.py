@@ -19,10 +19,12 @@ from abc import ABC, abstractmethod
 
 from .seed import Outcome, SeedJob, produce_seed
 
-__all__ = ["DEFAULT_CPUS_PER_SEED", "DEFAULT_RETRIES", "EXECUTORS", "Executor", "ExecutorError", "Outcome", "SeedJob", "produce_seed"]
+__all__ = ["DEFAULT_CPUS_PER_SEED", "DEFAULT_RETRIES", "EXECUTORS", "MIN_CPUS_PER_SEED", "Executor", "ExecutorError",
+           "Outcome", "SeedJob", "produce_seed"]
 
 EXECUTORS = ("local", "ray")
 DEFAULT_CPUS_PER_SEED = 2.0  # ray: one seed per 2 CPUs (the machine measured in docs/benchmarks.md: ~2.4 GB a seed)
+MIN_CPUS_PER_SEED = 0.0001  # ray: the finest fraction of a resource Ray accepts (smaller ones raise)
 DEFAULT_RETRIES = 2  # ray: a seed whose worker or node dies is run at most 3 times in all
 
 

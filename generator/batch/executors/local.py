@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import queue
-import shutil
 import signal
 import subprocess
 import threading
@@ -15,6 +14,7 @@ from pathlib import Path
 
 from .. import folders
 from . import Executor, SeedJob, produce_seed
+from .seed import CANCEL_WAIT
 
 
 class LocalExecutor(Executor):
@@ -25,6 +25,7 @@ class LocalExecutor(Executor):
         self.queue: queue.Queue = queue.Queue()
         self.running: dict[int, tuple[SeedJob, threading.Thread]] = {}
         self.procs: dict[int, subprocess.Popen] = {}
+        self.made: set[int] = set()  # seeds whose partial folder this run made (their worker started)
         self.cancelled = threading.Event()
 
     def room(self) -> int:
@@ -42,12 +43,13 @@ class LocalExecutor(Executor):
             self.queue.put({"seed": job.seed, **event})
 
         def started(proc: subprocess.Popen) -> None:
+            self.made.add(job.seed)
             self.procs[job.seed] = proc
             if self.cancelled.is_set():  # cancel_all ran while this one was starting
                 _kill(proc)
 
         try:
-            outcome = produce_seed(job, emit, started)
+            outcome = produce_seed(job, emit, started, self.cancelled)
         except Exception as exc:  # reported as the seed's failure, never lost
             from . import Outcome
 
@@ -69,13 +71,15 @@ class LocalExecutor(Executor):
         return got
 
     def cancel_all(self) -> None:
-        """Kill every worker process, wait for its thread, remove its partial folder."""
+        """Kill every worker process, stop every wait for a work lock, wait for each thread,
+        then remove the partial folders this run made (ours: marked, and no worker left)."""
         self.cancelled.set()
         for proc in list(self.procs.values()):
             _kill(proc)
         for seed, (job, thread) in list(self.running.items()):
             thread.join()
-            shutil.rmtree(folders.partial_folder(Path(job.out), seed), ignore_errors=True)
+            if seed in self.made:
+                folders.drop_idle_partial(Path(job.out), seed, wait=CANCEL_WAIT)
         self.running.clear()
         self.procs.clear()
 

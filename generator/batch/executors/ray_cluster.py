@@ -32,6 +32,7 @@ from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
 
 from .. import folders
 from . import Executor, ExecutorError, Outcome, SeedJob, produce_seed
+from .seed import CANCEL_WAIT
 
 CONNECT_TIMEOUT_S = 5.0  # TCP connection to the cluster's address
 INIT_TIMEOUT_S = 60.0  # ray.init against an address that accepts connections but does not answer
@@ -190,7 +191,7 @@ class RayExecutor(Executor):
             except Exception:
                 pass
         for job in self.refs.values():
-            folders.drop_idle_partial(Path(job.out), job.seed, wait=5.0)  # its worker dies with its task
+            folders.drop_idle_partial(Path(job.out), job.seed, wait=CANCEL_WAIT)  # its worker dies with its task
         self.refs.clear()
 
     def close(self) -> None:

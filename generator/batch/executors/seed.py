@@ -26,6 +26,9 @@ from .. import folders
 PARENT_ENV = "BUILDEE_WORKER_PARENT"
 # seconds an attempt waits for the worker of an earlier one to be gone (folders.SeedLock.wait_for_work)
 WORK_LOCK_WAIT = 120.0  # more than NFSv4's 90 s lease, after which a dead node's locks are released
+# seconds a cancelled seed's partial folder waits for its worker to let go of the work lock
+# before it is removed (folders.drop_idle_partial; else it is left for the next run)
+CANCEL_WAIT = 5.0
 
 ROOT = Path(__file__).resolve().parents[3]  # the worker runs with the repository as its working folder
 
@@ -66,18 +69,24 @@ class Outcome:
 Emit = Callable[[dict], None]
 
 
-def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen], None] | None = None) -> Outcome:
+def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen], None] | None = None,
+                 cancelled: threading.Event | None = None) -> Outcome:
     """Make ``job.seed`` in a partial folder of ``job.out`` and commit it. ``emit`` receives
     the seed's progress events as they happen: {"event": "note", "message"} (something of an
     earlier run was removed), {"event": "start", "frames"} (frames to render) and
     {"event": "frame"} (one more frame written). ``started`` receives the worker process
-    (to cancel it: kill its process group)."""
+    (to cancel it: kill its process group), once the partial folder is made. ``cancelled``,
+    once set, ends the wait for the work lock: nothing is touched."""
     out = Path(job.out).absolute()  # the worker runs in the repository's folder
     work_path = folders.work_lock_file(out, job.seed)
     try:
-        work = folders.SeedLock.wait_for_work(out, job.seed, WORK_LOCK_WAIT)
+        work = folders.SeedLock.wait_for_work(out, job.seed, WORK_LOCK_WAIT, cancelled)
     except OSError as exc:
         return Outcome(job.seed, "conflict", f"cannot lock {work_path}: {exc.strerror or exc}")
+    if cancelled is not None and cancelled.is_set():
+        if work is not None:
+            work.release()
+        return Outcome(job.seed, "failed", "cancelled")
     if work is None:
         return Outcome(job.seed, "failed", f"a process of an earlier attempt ({_holder(work_path)}) still holds "
                        f"{work_path} after {WORK_LOCK_WAIT:g} s; its partial folder is left alone: run again once "
