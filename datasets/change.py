@@ -9,7 +9,6 @@ bpy, torch optional; docs/phases.md).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Callable
 
@@ -17,8 +16,8 @@ import numpy as np
 
 from generator.checks import check_integer
 
-from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_point_cloud
-from .tasks import _Base
+from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_labels, read_point_cloud, seed_fields
+from .tasks import _Base, _keys, _kinds, _to_tensor
 
 
 class Timeline:
@@ -26,7 +25,7 @@ class Timeline:
 
     def __init__(self, path: str | Path):
         from exporters.changes import FILE, read_changes
-        from exporters.hdf5 import DamagedFileError
+        from exporters.hdf5 import AccessError, DamagedFileError
         from exporters.manifest import read_manifest
 
         self.path = Path(path)
@@ -34,19 +33,19 @@ class Timeline:
         if manifest is None or not (self.path / FILE).is_file():
             raise DatasetError(f"{self.path}: not a complete timeline seed folder (manifest.json and {FILE}); "
                                "point at output/seed_NNNNNN written by python -m generator --phases K")
-        self.seed = int(manifest["seed"])
-        self.trajectories = [str(k) for k in manifest["config"]["trajectories"]]
+        self.seed, self.trajectories = seed_fields(manifest, self.path)
         try:
             self.changes = read_changes(self.path)
-        except (DamagedFileError, ValueError) as exc:
+        except (DamagedFileError, ValueError, AccessError) as exc:
             raise DatasetError(str(exc)) from None
         self.stages = self.changes.stages
-        self.labels = json.loads((self.path / "phase_0" / "labels.json").read_text())
+        self.labels = read_labels(self.path / "phase_0")
         self._sequences: dict[tuple[int, str], Sequence] = {}
 
     def sequence(self, stage: int, kind: str) -> Sequence:
-        """Stage ``stage``'s frames of trajectory ``kind`` (datasets.scene.Sequence)."""
-        check_index(stage, self.stages, "stage")
+        """Stage ``stage``'s frames (Python indexing: -1 is the last stage) of trajectory
+        ``kind`` (datasets.scene.Sequence)."""
+        stage = check_index(stage, self.stages, "stage")
         if kind not in self.trajectories:
             raise MissingKeyError(f"no trajectory {kind!r} in {self.path} (has {', '.join(self.trajectories)})")
         if (stage, kind) not in self._sequences:
@@ -61,6 +60,7 @@ class ChangePairDataset(_Base):
     pose included; the poses are the same), ``change`` (H, W) bool (the pixel's visible
     surface changed, changes.h5), ``stages`` (k-1, k), ``scene`` (seed), ``trajectory``,
     ``index``. ``pairs``: the k of the pairs (k-1, k) to include (default: all);
+    ``trajectories`` and ``keys`` (one name or several) are checked here, as FrameDataset's;
     ``transform`` is applied to ``before``, ``after`` and ``change`` each (the mask as an id
     map: nearest pixel centre, cropped with the frames)."""
 
@@ -71,15 +71,18 @@ class ChangePairDataset(_Base):
         self.timelines = [p if isinstance(p, Timeline) else Timeline(p) for p in paths]
         if not self.timelines:
             raise DatasetError("no timelines given")
-        self.keys = keys
+        kinds = _kinds(self.timelines, trajectories)
         self.index: list[tuple[int, int, str, int]] = []
+        sequences: list[Sequence] = []
         for s, tl in enumerate(self.timelines):
             ks = range(1, tl.stages) if pairs is None else pairs
             for k in ks:
                 k = check_integer("pair", k, 1, tl.stages - 1,
                                   valid=f"an integer from 1 to {tl.stages - 1} for {tl.path} (stage k-1 to stage k)")
-                for kind in trajectories or tl.trajectories:
-                    self.index += [(s, k, kind, i) for i in range(len(tl.sequence(k, kind)))]
+                for kind in kinds[s]:
+                    sequences += [tl.sequence(k - 1, kind), tl.sequence(k, kind)]
+                    self.index += [(s, k, kind, i) for i in range(len(sequences[-1]))]
+        self.keys = _keys(keys, sequences)
 
     def __len__(self) -> int:
         return len(self.index)
@@ -96,8 +99,6 @@ class ChangePairDataset(_Base):
             change = self.transform({"instance": change.astype(np.int32), "K": after["K"]})["instance"] == 1
         sample = {"before": before, "after": after, "change": change, "stages": np.array([k - 1, k]),
                   "K": after["K"], "pose": after["pose"], "scene": tl.seed, "trajectory": kind, "index": j}
-        from .tasks import _to_tensor
-
         return _to_tensor(sample) if self.as_tensor else sample
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from exporters import FORMAT_VERSION, VERSION_REMEDY
 from exporters.frames import FrameReader, frame_names
-from exporters.hdf5 import H5_ERRORS, DamagedFileError, damaged, reason
+from exporters.hdf5 import H5_ERRORS, DamagedFileError, access_error, damaged, reason
 from exporters.manifest import read_manifest, stage_count, timeline_stage
 from exporters.tracks import TrackReader
 
@@ -37,7 +37,8 @@ class MissingKeyError(KeyError):
 
 
 def _checked(call, *args, path=None):
-    """``call(*args)``, with a damaged file reported as a :class:`DatasetError`."""
+    """``call(*args)``, with a damaged file, or one this process cannot open now (too many
+    open files, no permission: not damage), reported as a :class:`DatasetError`."""
     try:
         return call(*args)
     except DamagedFileError as exc:
@@ -45,9 +46,10 @@ def _checked(call, *args, path=None):
     except DatasetError:
         raise
     except H5_ERRORS as exc:  # damaged HDF5 metadata can fail anywhere h5py looks
-        if path is None:
+        cause = access_error(exc)
+        if cause is None and path is None:
             raise
-        raise DatasetError(str(damaged(path, reason(exc)))) from None
+        raise DatasetError(str(cause or damaged(path, reason(exc)))) from None
 
 
 def _written_with_instance(path: Path) -> None:
@@ -60,6 +62,40 @@ def _written_with_instance(path: Path) -> None:
     if outputs and "instance" not in outputs:
         raise DatasetError(f"{path.parent.parent}: made with --outputs {','.join(outputs)}, without instance, so it has "
                            f"no {path.name}; regenerate it with instance in --outputs to get annotations")
+
+
+def seed_fields(manifest: dict, folder: Path) -> tuple[int, list[str]]:
+    """(seed, trajectory kinds) of a seed's manifest, checked: a format version this reader
+    does not read, or a manifest without them, is a :class:`DatasetError` naming the file."""
+    version = manifest.get("format_version")
+    if version not in SUPPORTED_VERSIONS:
+        raise DatasetError(f"{folder}: format_version {version!r}; this reader reads "
+                           f"{', '.join(SUPPORTED_VERSIONS)} ({VERSION_REMEDY})")
+    try:
+        seed, kinds = int(manifest["seed"]), [str(k) for k in manifest["config"]["trajectories"]]
+    except (KeyError, TypeError, ValueError):
+        raise DatasetError(f"{folder / 'manifest.json'}: damaged manifest (no seed or trajectories); "
+                           "regenerate this seed with python -m generator") from None
+    if any(Path(k).name != k or k in ("", ".", "..") for k in kinds):
+        raise DatasetError(f"{folder / 'manifest.json'}: damaged manifest (trajectory names "
+                           f"{kinds} are not folder names); regenerate this seed")
+    return seed, kinds
+
+
+def read_labels(folder: Path) -> list[str]:
+    """The label table (``labels.json``) of a seed folder or of a timeline's stage, checked: a
+    missing or unreadable file is a :class:`DatasetError` naming it."""
+    path = folder / "labels.json"
+    if not path.is_file():
+        raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
+    try:
+        labels = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError) as exc:
+        raise DatasetError(str(access_error(exc, path) or f"{path}: unreadable label table ({exc.__class__.__name__}); "
+                               "regenerate this seed with python -m generator")) from None
+    if not isinstance(labels, list) or not all(isinstance(n, str) for n in labels):
+        raise DatasetError(f"{path}: not a JSON list of class names; regenerate this seed")
+    return labels
 
 
 def check_index(i, n: int, what: str) -> int:
@@ -189,12 +225,14 @@ class Sequence:
         return _checked(self.tracks.visible, t)
 
     def point_positions(self, t: int, ids: np.ndarray) -> np.ndarray:
-        """World positions (n, 3) metres of points ``ids`` at frame t (Python indexing; dynamic
-        ones moved)."""
+        """World positions (n, 3) float64 metres of points ``ids`` at frame t (Python indexing;
+        dynamic ones moved); no ids (``[]``) give a (0, 3) array."""
         t = check_index(t, len(self), f"{self.kind} frame")
         ids = np.asarray(ids)
         n = len(self.points["label"])
-        if ids.size and (ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n):
+        if not ids.size:
+            ids = ids.astype(np.int64)  # numpy reads [] as float64: no ids, (0, 3) positions
+        elif ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n:
             raise IndexError(f"point ids must be integers in 0..{n - 1}")
         return _checked(self.tracks.positions, t, ids)
 
@@ -228,6 +266,12 @@ class Sequence:
 
         _written_with_instance(self.folder / "boxes3d.json")
         return _checked(Boxes3DReader, self.folder / "boxes3d.json")
+
+    def check_annotations(self) -> None:
+        """The DatasetError :meth:`annotations` would raise for a seed made without the
+        instance output (so without coco.json and boxes3d.json), raised now."""
+        for name in ("coco.json", "boxes3d.json"):
+            _written_with_instance(self.folder / name)
 
     def annotations(self, t: int) -> dict:
         """The objects in frame t (Python indexing): ``boxes2d`` (from coco.json: ``instance_id``,
@@ -269,30 +313,9 @@ class Scene:
         if stage_count(manifest) > 1:
             raise DatasetError(f"{self.path}: a timeline seed of {stage_count(manifest)} stages (--phases); read it "
                                f"with datasets.change.Timeline('{self.path}')")
-        version = manifest.get("format_version")
-        if version not in SUPPORTED_VERSIONS:
-            raise DatasetError(f"{self.path}: format_version {version!r}; this reader reads "
-                               f"{', '.join(SUPPORTED_VERSIONS)} ({VERSION_REMEDY})")
         self.manifest = manifest
-        try:
-            self.seed = int(manifest["seed"])
-            self.trajectories: list[str] = [str(k) for k in manifest["config"]["trajectories"]]
-        except (KeyError, TypeError, ValueError):
-            raise DatasetError(f"{self.path / 'manifest.json'}: damaged manifest (no seed or trajectories); "
-                               "regenerate this seed with python -m generator") from None
-        if any(Path(k).name != k or k in ("", ".", "..") for k in self.trajectories):
-            raise DatasetError(f"{self.path / 'manifest.json'}: damaged manifest (trajectory names "
-                               f"{self.trajectories} are not folder names); regenerate this seed")
-        labels_path = self.path / "labels.json"
-        if not labels_path.is_file():
-            raise DatasetError(f"{labels_path}: missing; the seed folder is incomplete, regenerate it")
-        try:
-            self.labels: list[str] = json.loads(labels_path.read_bytes().decode("utf-8"))
-        except (OSError, ValueError) as exc:
-            raise DatasetError(f"{labels_path}: unreadable label table ({exc.__class__.__name__}); "
-                               "regenerate this seed with python -m generator") from None
-        if not isinstance(self.labels, list) or not all(isinstance(n, str) for n in self.labels):
-            raise DatasetError(f"{labels_path}: not a JSON list of class names; regenerate this seed")
+        self.seed, self.trajectories = seed_fields(manifest, self.path)
+        self.labels: list[str] = read_labels(self.path)
         self._sequences: dict[str, Sequence] = {}
 
     def __repr__(self) -> str:

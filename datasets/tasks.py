@@ -47,8 +47,9 @@ def _to_tensor(sample: dict) -> dict:
     return out
 
 
-def _kinds(scenes: list[Scene], trajectories) -> list[list[str]]:
-    """Per scene, the trajectory kinds to use (default: all); an unknown kind is a DatasetError."""
+def _kinds(scenes: list, trajectories) -> list[list[str]]:
+    """Per scene (or Timeline: anything with ``path`` and ``trajectories``), the trajectory
+    kinds to use (one name or several; default: all); an unknown kind is a DatasetError."""
     if isinstance(trajectories, str):
         trajectories = [trajectories]
     out = []
@@ -62,18 +63,21 @@ def _kinds(scenes: list[Scene], trajectories) -> list[list[str]]:
     return out
 
 
-def _keys(keys, scenes: list[Scene], kinds: list[list[str]]) -> tuple[str, ...] | None:
+def _sequences(scenes: list[Scene], kinds: list[list[str]]) -> list[Sequence]:
+    return [scene[kind] for scene, names in zip(scenes, kinds) for kind in names]
+
+
+def _keys(keys, sequences: list[Sequence]) -> tuple[str, ...] | None:
     """The modality names to read (one name or several; None: every stored one), each checked
-    against what every chosen trajectory stores, here rather than in a DataLoader worker."""
+    against what every chosen sequence stores, here rather than in a DataLoader worker."""
     if keys is None:
         return None
     keys = (keys,) if isinstance(keys, str) else tuple(keys)
-    for scene, names in zip(scenes, kinds):
-        for kind in names:
-            missing = [k for k in keys if k not in scene[kind].modalities]
-            if missing:
-                raise DatasetError(f"{scene.path / kind}: no modality {', '.join(missing)} (written: "
-                                   f"{', '.join(scene[kind].modalities)})")
+    for seq in sequences:
+        missing = [k for k in keys if k not in seq.modalities]
+        if missing:
+            raise DatasetError(f"{seq.folder}: no modality {', '.join(missing)} (written: "
+                               f"{', '.join(seq.modalities)})")
     return keys
 
 
@@ -95,14 +99,19 @@ class FrameDataset(_Base):
     ``trajectories``: kinds to include (default: all); ``keys``: modalities to return
     (default: every stored one; exporters/modalities.py). ``annotations=True`` adds the
     frame's objects, ``boxes2d`` and ``boxes3d`` (:meth:`Sequence.annotations`); their
-    lengths vary by frame, so batch them with a collate function of your own."""
+    lengths vary by frame, so batch them with a collate function of your own. Keys,
+    trajectories and annotations are checked here (DatasetError), not in a worker."""
 
     def __init__(self, paths, trajectories: list[str] | None = None, transform: Callable | None = None,
                  as_tensor: bool = False, keys: tuple[str, ...] | None = None, annotations: bool = False):
         super().__init__(transform, as_tensor)
         self.scenes = _scenes(paths)
         kinds = _kinds(self.scenes, trajectories)
-        self.keys, self.annotations = _keys(keys, self.scenes, kinds), annotations
+        sequences = _sequences(self.scenes, kinds)
+        self.keys, self.annotations = _keys(keys, sequences), annotations
+        if annotations:  # a seed made without the instance output has none: say so here
+            for seq in sequences:
+                seq.check_annotations()
         self.index: list[tuple[int, str, int]] = []
         for s, scene in enumerate(self.scenes):
             for kind in kinds[s]:
@@ -139,7 +148,7 @@ class ClipDataset(_Base):
         _check_count("max_points", max_points)
         self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
         kinds = _kinds(self.scenes, trajectories)
-        self.keys = _keys(keys, self.scenes, kinds)
+        self.keys = _keys(keys, _sequences(self.scenes, kinds))
         self.index: list[tuple[int, str, int]] = []
         span = (length - 1) * stride
         for s, scene in enumerate(self.scenes):

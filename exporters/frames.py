@@ -16,7 +16,7 @@ import numpy as np
 from PIL import Image
 
 from .exr import read_frame_exr, write_frame
-from .hdf5 import REMEDY, DamagedFileError
+from .hdf5 import REMEDY, DamagedFileError, access_error
 from .modalities import MODALITIES, Modality, produced_by
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
@@ -121,7 +121,8 @@ def exact_png(name: str) -> bool:
 
 class FrameReader:
     """Reads the frames of one trajectory folder by modality name (``frames.json`` says
-    which were written). Damaged or missing files raise DamagedFileError naming them."""
+    which were written). Damaged or missing files raise DamagedFileError naming them; a file
+    this process cannot open (too many open files, no permission) raises AccessError."""
 
     def __init__(self, folder: str | Path):
         self.folder = Path(folder)
@@ -133,7 +134,8 @@ class FrameReader:
         except FileNotFoundError:
             raise DamagedFileError(f"{path}: missing; {REMEDY}") from None
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise DamagedFileError(f"{path}: damaged file ({exc.__class__.__name__}); {REMEDY}") from None
+            damage = DamagedFileError(f"{path}: damaged file ({exc.__class__.__name__}); {REMEDY}")
+            raise access_error(exc, path) or damage from None
         unknown = [n for n in self.modalities if n not in MODALITIES]
         if unknown:
             raise DamagedFileError(f"{path}: modalities {unknown} are not registered in this process "
@@ -172,7 +174,8 @@ class FrameReader:
                 try:
                     out[k] = read_png(path, kind)
                 except OSError as exc:
-                    raise DamagedFileError(f"{path}: damaged PNG ({exc.__class__.__name__}); {REMEDY}") from None
+                    damage = DamagedFileError(f"{path}: damaged PNG ({exc.__class__.__name__}); {REMEDY}")
+                    raise access_error(exc, path) or damage from None
                 except ValueError as exc:
                     raise DamagedFileError(f"{exc}; {REMEDY}") from None
         shape = (self.height, self.width)

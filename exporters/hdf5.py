@@ -14,6 +14,8 @@ per dataset and simply absent there.
 
 from __future__ import annotations
 
+import errno
+import os
 from pathlib import Path
 
 import h5py
@@ -28,6 +30,35 @@ REMEDY = ("regenerate this seed: rerun python -m generator with its options and 
 
 class DamagedFileError(ValueError):
     """A file that is truncated, damaged or not what it should be (one line: which file, what to do)."""
+
+
+# causes outside the file, for which it cannot be opened or read (errno -> what to do)
+ACCESS_ADVICE = {
+    errno.EMFILE: "raise this process's open-file limit (ulimit -n) or read fewer seeds at once",
+    errno.ENFILE: "the system's open-file table is full; close files elsewhere or raise fs.file-max",
+    errno.EACCES: "check the file's permissions",
+    errno.EPERM: "check the file's permissions",
+    errno.ENOMEM: "free some memory",
+}
+
+
+class AccessError(OSError):
+    """A file this process cannot open or read for a cause outside the file (too many open
+    files, no permission: :data:`ACCESS_ADVICE`); the file is not damaged. One line: the
+    file, the cause, what to do. Made with :func:`access_error`."""
+
+    def __str__(self) -> str:
+        return (f"{self.filename}: cannot read it ({self.strerror}; the file itself is not damaged); "
+                f"{ACCESS_ADVICE[self.errno]}")
+
+
+def access_error(exc: BaseException, path: str | Path | None = None) -> AccessError | None:
+    """An :class:`AccessError` for ``exc`` (about ``path``, else the file it names) when it is
+    an OSError of a cause outside the file, else None: ``raise access_error(exc, path) or damaged(...)``."""
+    code = exc.errno if isinstance(exc, OSError) else None
+    if code not in ACCESS_ADVICE:
+        return None
+    return AccessError(code, os.strerror(code), str(path if path is not None else exc.filename))
 
 
 def damaged(path: str | Path, what: str) -> DamagedFileError:
@@ -73,14 +104,15 @@ def text(value) -> str:
 
 
 def open_file(path: str | Path) -> h5py.File:
-    """Open an HDF5 file for reading; a damaged or foreign file raises :class:`DamagedFileError`."""
+    """Open an HDF5 file for reading; a damaged or foreign file raises :class:`DamagedFileError`,
+    one this process cannot open now (too many open files, no permission) :class:`AccessError`."""
     path = Path(path)
     if not path.is_file():
         raise DamagedFileError(f"{path}: no such file; {REMEDY}")
     try:
         return h5py.File(path, "r")
     except H5_ERRORS as exc:
-        raise damaged(path, f"not a readable HDF5 file: {reason(exc)}") from None
+        raise access_error(exc, path) or damaged(path, f"not a readable HDF5 file: {reason(exc)}") from None
 
 
 def read(node: h5py.Group | h5py.File, key: str, path: str | Path | None = None, sel=()) -> np.ndarray:

@@ -37,8 +37,8 @@ import numpy as np
 from generator.geometry.camera import apply_affine, project
 
 from . import FORMAT_VERSION, VERSION_REMEDY
-from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, attribute, create_file, damaged, dataset, group, open_file, read,
-                   reason, text, text_attribute, verify)
+from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, access_error, attribute, create_file, damaged, dataset, group,
+                   open_file, read, reason, text, text_attribute, verify)
 
 _CHUNK = 1 << 16
 
@@ -229,23 +229,24 @@ def _version_error(path: Path, version) -> DamagedFileError:
 
 
 class TrackReader:
-    """One ``tracks.h5``, read lazily: the file is opened once per process (and reopened after
-    a fork, so a reader can be handed to DataLoader workers) and datasets are read when asked.
+    """One ``tracks.h5``, read lazily: the file is opened at the first read of a dataset, once
+    per process (and reopened after a fork, so a reader can be handed to DataLoader workers).
 
-    On construction the format version and the camera arrays are read and checked:
-    ``K`` (3, 3), ``width``, ``height`` (pixels), ``poses`` (T, 4, 4) world_from_camera,
-    ``timestamps`` (T,) s, ``offsets`` (T + 1,), ``labels``, ``units`` (dataset -> unit).
-    Every failure (damaged file, checksum, other version, inconsistent arrays) raises
-    :class:`DamagedFileError` naming the file and the remedy."""
+    On construction the format version and the camera arrays are read and checked, and the
+    file is closed again (many readers hold no file open): ``K`` (3, 3), ``width``, ``height``
+    (pixels), ``poses`` (T, 4, 4) world_from_camera, ``timestamps`` (T,) s, ``offsets``
+    (T + 1,), ``labels``, ``units`` (dataset -> unit). Every failure (damaged file, checksum,
+    other version, inconsistent arrays) raises :class:`DamagedFileError` naming the file and
+    the remedy; a file this process cannot open (too many open files, no permission)
+    raises :class:`~exporters.hdf5.AccessError`."""
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self._file, self._pid = None, None
         try:
             self._guard(self._read_header)
-        except DamagedFileError:
+        finally:
             self.close()
-            raise
 
     def _guard(self, call, *args):
         try:
@@ -253,7 +254,7 @@ class TrackReader:
         except DamagedFileError:
             raise
         except H5_ERRORS as exc:  # damaged metadata can fail anywhere h5py looks
-            raise damaged(self.path, reason(exc)) from None
+            raise access_error(exc, self.path) or damaged(self.path, reason(exc)) from None
 
     def file(self) -> h5py.File:
         """The open file (this process's handle)."""
