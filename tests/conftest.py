@@ -36,6 +36,22 @@ def run_generator(out, *args, env_extra=None, **kw) -> subprocess.CompletedProce
                           capture_output=True, text=True, env=env, **kw)
 
 
+def run_evaluation(*args, timeout: float = 300) -> subprocess.CompletedProcess:
+    """``python -m evaluation *args`` in a real process."""
+    return subprocess.run([sys.executable, "-m", "evaluation", *map(str, args)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=timeout)
+
+
+def assert_refused(r: subprocess.CompletedProcess, *words) -> str:
+    """Exit code 2, one line on stderr holding ``words``, no traceback; returns the line."""
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    for w in words:
+        assert str(w) in lines[0], (w, lines[0])
+    return lines[0]
+
+
 @pytest.fixture(scope="session")
 def finished(tmp_path_factory):
     """(output folder, completed process) of one tiny run of seed 4, written by the real pipeline;

@@ -5,14 +5,12 @@ the ground truth here is a small points.ply written with the exporters' own writ
 
 import json
 import re
-import subprocess
-import sys
 import warnings
 
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import assert_refused, run_evaluation
 from evaluation import Cloud
 from evaluation.inputs import InputError, read_cloud
 from exporters import FORMAT_VERSION
@@ -23,19 +21,7 @@ from trajectories import Trajectory, TrajectoryError
 LABELS = ["ground", "building", "crane"]
 
 
-def cli(*args):
-    return subprocess.run([sys.executable, "-m", "evaluation", *map(str, args)], capture_output=True, text=True,
-                          cwd=ROOT, timeout=300)
-
-
-def assert_refused(r, *words):
-    """Exit code 2, one line on stderr holding ``words``, no traceback."""
-    lines = r.stderr.strip().splitlines()
-    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
-    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
-    for w in words:
-        assert str(w) in lines[0], (w, lines[0])
-    return lines[0]
+cli = run_evaluation
 
 
 def write_gt(folder, n=60):

@@ -4,15 +4,13 @@ from the stored ground truth against the generator's own history, and bad input 
 import json
 import math
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT
+from conftest import run_evaluation
 from evaluation import Cloud, load_gt_cloud, reconstruction_metrics, score_coverage, score_reconstruction, voxel_downsample
 from evaluation.coverage import coverage_auc
 from evaluation.inputs import InputError
@@ -189,8 +187,7 @@ def test_perfect_and_noisy_reconstruction_of_the_real_gt(seed_folder):
     assert r["labels"] == json.loads((seed_folder / "labels.json").read_text())
 
 
-def cli(*args):
-    return subprocess.run([sys.executable, "-m", "evaluation", *map(str, args)], capture_output=True, text=True, cwd=ROOT)
+cli = run_evaluation
 
 
 def test_cli_writes_json_and_figure9_ply(seed_folder, tmp_path):

@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, assert_refused, run_evaluation
 from datasets import ClipDataset, DatasetError, FrameDataset, PointCloudDataset, Scene
 from evaluation import Cloud
 from evaluation.coverage import Poses
@@ -35,19 +35,7 @@ def perfect_tracks(seed_folder, tmp_path_factory):
     return path
 
 
-def cli(*args):
-    return subprocess.run([sys.executable, "-m", "evaluation", *map(str, args)], capture_output=True, text=True,
-                          cwd=ROOT, timeout=300)
-
-
-def assert_refused(r, *words):
-    """Exit code 2, one line on stderr holding ``words``, no traceback."""
-    lines = r.stderr.strip().splitlines()
-    assert r.returncode == 2, (r.returncode, r.stderr[-2000:])
-    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
-    for w in words:
-        assert str(w) in lines[0], (w, lines[0])
-    return lines[0]
+cli = run_evaluation
 
 
 def tree_state(folder):
