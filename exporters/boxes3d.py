@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from generator.geometry.boxes import Box3D, part_world_matrices, upright_box
+from generator.geometry.boxes import Box3D, moved_box, part_world_matrices, upright_box
 
 from . import FORMAT_VERSION
 from .hdf5 import REMEDY, DamagedFileError
@@ -65,7 +65,8 @@ class Boxes3DWriter:
         matrices = part_world_matrices(ctx.parts, ctx.dynamic_objects, frame.object_matrices)
         boxes = []
         for iid in np.flatnonzero(counts).tolist():
-            box = self.local[iid].transformed(matrices[iid]) if ctx.parts[iid].dynamic else self.local[iid]
+            part = ctx.parts[iid]
+            box = moved_box(self.local[iid], part.vertices, matrices[iid]) if part.dynamic else self.local[iid]
             boxes.append({"instance": iid, "label_id": int(ctx.instances[iid]["label_id"]),
                           "centre": box.centre.tolist(), "size": box.size.tolist(), "rotation": box.rotation.tolist(),
                           "pixels": int(counts[iid]), "pixel_share": float(counts[iid]) / (ctx.width * ctx.height)})

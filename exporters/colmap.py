@@ -57,7 +57,9 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
 
 # ---- reading ---------------------------------------------------------------------------------
 
-_CAMERA_PARAMS = {0: 3, 1: 4, 2: 4, 3: 5, 4: 8, 5: 8, 6: 12, 7: 5, 8: 4, 9: 5, 10: 12}  # COLMAP model id -> params
+# COLMAP camera model id -> number of params (every model of COLMAP 3.13 / pycolmap 4.2, ids 0-17)
+_CAMERA_PARAMS = {0: 3, 1: 4, 2: 4, 3: 5, 4: 8, 5: 8, 6: 12, 7: 5, 8: 4, 9: 5, 10: 12, 11: 16, 12: 4, 13: 5, 14: 3,
+                  15: 4, 16: 6, 17: 2}
 
 
 class ColmapError(ValueError):

@@ -113,3 +113,31 @@ def test_sinks_write_nothing_without_the_instance_modality(tmp_path):
         sink.add_frame(frame)
         assert sink.close() is None
     assert not list(tmp_path.iterdir())
+
+
+def test_a_moving_box_holds_its_part_under_any_axis_scale():
+    """A slab turned 30 degrees in its object frame, moved by matrices of uniform and
+    non-uniform axis scale: the box holds every world vertex and is no larger than the
+    upright box of the moved vertices (the tightest box, when the matrix keeps Z up)."""
+    from generator.geometry.boxes import moved_box
+
+    slab = Box3D(np.array([0.5, -0.2, 0.3]), np.array([4.0, 1.0, 1.0]),
+                 np.array([[np.cos(0.5236), -np.sin(0.5236), 0], [np.sin(0.5236), np.cos(0.5236), 0], [0, 0, 1]]))
+    rng = np.random.default_rng(3)
+    verts = np.concatenate([slab.corners(), slab.centre + (rng.uniform(-0.5, 0.5, (100, 3)) * slab.size) @ slab.rotation.T])
+    local = upright_box(verts)
+    yaw = 0.7
+    turn = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    for scale in ([1.0, 1.0, 1.0], [1.5, 1.5, 1.5], [2.0, 1.0, 1.0], [0.5, 3.0, 1.2]):
+        m = np.eye(4)
+        m[:3, :3] = turn @ np.diag(scale)
+        m[:3, 3] = (10.0, -4.0, 2.0)
+        world = verts @ m[:3, :3].T + m[:3, 3]
+        box = moved_box(local, verts, m)
+        assert box.contains(world, 1e-9).all(), scale
+        np.testing.assert_allclose(box.rotation.T @ box.rotation, np.eye(3), atol=1e-12)
+        assert np.prod(box.size) <= np.prod(upright_box(world).size) * (1 + 1e-9), scale
+        if len(set(scale)) == 1:  # uniform: the local box carried as it is
+            carried = local.transformed(m)
+            np.testing.assert_array_equal(box.size, carried.size)
+            np.testing.assert_array_equal(box.centre, carried.centre)

@@ -81,3 +81,42 @@ def test_points3d_carry_their_real_reprojection_error(tmp_path):
 def _point_index(rec, point3d_id: int, pts: np.ndarray) -> int:
     """Which of our points a COLMAP 3D point is (its coordinates are ours, exactly)."""
     return int(np.flatnonzero(np.all(pts == rec.points3D[point3d_id].xyz, axis=1))[0])
+
+
+def test_reader_knows_every_camera_model_of_colmap(tmp_path):
+    """A binary model may hold cameras of any of COLMAP's models: an unused one is ignored,
+    and the images' own camera must be a pinhole (refused as a model, not as a damaged file)."""
+    import pytest
+
+    from exporters.colmap import ColmapError, read_colmap_model
+
+    K = np.array([[300.0, 0, 160], [0, 300.0, 120], [0, 0, 1]])
+    poses = np.stack([look_at((12 * np.cos(a), 12 * np.sin(a), 4.0), (0, 0, 0)) for a in (0.0, 0.5)])
+    empty = [(np.zeros(0, int), np.zeros((0, 2)))] * 2
+    base = tmp_path / "base"
+    write_colmap_model(base, K, 320, 240, poses, ["a.png", "b.png"], empty, np.zeros((0, 3)), np.zeros((0, 3), np.uint8),
+                       text=True)
+    for model_id in range(18):  # every model pycolmap knows
+        model = pycolmap.CameraModelId(model_id)
+        camera = pycolmap.Camera.create_from_model_id(2, model, 200.0, 320, 240)
+        extra = tmp_path / f"extra{model_id}"  # the pinhole camera and an unused one of this model
+        extra.mkdir()
+        rec = pycolmap.Reconstruction(str(base))
+        rec.add_camera(camera)
+        rec.write_binary(str(extra))
+        np.testing.assert_allclose(read_colmap_model(extra).K, K)
+        if model.name in ("PINHOLE", "SIMPLE_PINHOLE"):
+            continue
+        used = tmp_path / f"used{model_id}"  # the images' camera is of this model
+        used.mkdir()
+        lines = (base / "cameras.txt").read_text().splitlines()
+        lines[-1] = " ".join(["1", model.name, "320", "240", *map(str, camera.params)])
+        (used / "cameras.txt").write_text("\n".join(lines) + "\n")
+        for name in ("images.txt", "points3D.txt"):
+            (used / name).write_bytes((base / name).read_bytes())
+        rec = pycolmap.Reconstruction(str(used))
+        for name in ("cameras.txt", "images.txt", "points3D.txt"):
+            (used / name).unlink()
+        rec.write_binary(str(used))
+        with pytest.raises(ColmapError, match=f"camera model {model.name}; PINHOLE or SIMPLE_PINHOLE is needed"):
+            read_colmap_model(used)

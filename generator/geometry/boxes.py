@@ -4,7 +4,8 @@
   whose footprint is the minimum-area rectangle around the points' projection on the XY
   plane (site objects stand upright, so in the world frame this is the tightest upright
   box; its yaw is that of a hull edge, a standard property of minimum-area rectangles).
-- :meth:`Box3D.transformed`: the same box carried by an object's world_from_object matrix.
+- :meth:`Box3D.transformed`: the same box carried by an object's world_from_object matrix;
+  :func:`moved_box`: a moving part's box at its matrix (refitted under a non-uniform scale).
 - :func:`amodal_box`: the 2D box of a whole triangle mesh projected into the image, clipped
   to the image (what the object would cover if nothing occluded it).
 - :func:`mask_box`: the tight box of a pixel mask.
@@ -55,6 +56,21 @@ class Box3D:
         lengths = vector_norm(axes.T)
         rotation = orthogonal_factor(axes / np.where(lengths > 0, lengths, 1.0))  # exact when m does not shear
         return Box3D(apply_affine(m, self.centre), self.size * lengths, rotation)
+
+
+def moved_box(local: Box3D, vertices: np.ndarray, matrix: np.ndarray) -> Box3D:
+    """The box of a moving part at ``matrix`` (world_from_object: rigid times axis scale)
+    whose box in the object frame is ``local`` (:func:`upright_box` of ``vertices``, object
+    frame). Under a uniform scale that box carried by the matrix; under a non-uniform one a
+    box turned in the object frame would come out sheared, so the box is fitted again to the
+    scaled vertices and carried by the rigid part alone."""
+    m = np.asarray(matrix, float)
+    scale = vector_norm(m[:3, :3].T)  # the length of each object axis in the world
+    if scale.max() - scale.min() <= 1e-9 * scale.max():
+        return local.transformed(m)
+    rigid = m.copy()
+    rigid[:3, :3] = m[:3, :3] / np.where(scale > 0, scale, 1.0)
+    return upright_box(np.asarray(vertices, float) * scale).transformed(rigid)
 
 
 def upright_box(points: np.ndarray) -> Box3D:
