@@ -1,6 +1,7 @@
 """``seed_N/changes.png``: a timeline at a glance (docs/phases.md).
 
-Top row: frame 0 of one trajectory in every stage, side by side (the same pose). Bottom
+Top row: frame 0 of one trajectory in every stage, side by side (the same pose; its display
+RGB, or without the rgb output its label, instance or depth PNG). Bottom
 row, one panel per consecutive pair k-1 -> k: the ground-truth clouds seen from above (north
 up), unchanged surface grey, added surface (stage k) green, removed surface (stage k-1) red;
 where both fall on one pixel the change is drawn over the rest."""
@@ -39,11 +40,24 @@ def change_map(xyz_before: np.ndarray, removed: np.ndarray, xyz_after: np.ndarra
     return img
 
 
+SHOWN = ("rgb", "label", "instance", "depth")  # the frame image of the top row: the first written
+
+
+def _first_image(trajectory: Path) -> str:
+    """The first of SHOWN whose PNG the trajectory folder holds (--outputs may leave rgb out)."""
+    for name in SHOWN:
+        if (trajectory / f"{name}_000000.png").is_file():
+            return name
+    raise FileNotFoundError(f"{trajectory}: no {', '.join(SHOWN)} PNG of frame 0 to show")
+
+
 def timeline_preview(folder: str | Path, stages: int, kind: str, size: int = 360) -> Path:
     folder = Path(folder)
     changes = read_changes(folder, masks=False)
     clouds = [read_points(folder / f"phase_{k}" / "ground_truth").points for k in range(stages)]
-    frames = [np.asarray(Image.open(folder / f"phase_{k}" / kind / "rgb_000000.png").convert("RGB")) for k in range(stages)]
+    shown = _first_image(folder / "phase_0" / kind)
+    frames = [np.asarray(Image.open(folder / f"phase_{k}" / kind / f"{shown}_000000.png").convert("RGB"))
+              for k in range(stages)]
     h = size * frames[0].shape[0] // frames[0].shape[1]
     both = np.concatenate(clouds)
     bounds = np.array([both[:, :2].min(0), both[:, :2].max(0)])
@@ -51,7 +65,8 @@ def timeline_preview(folder: str | Path, stages: int, kind: str, size: int = 360
     draw = ImageDraw.Draw(sheet)
     for k, rgb in enumerate(frames):
         sheet.paste(Image.fromarray(rgb).resize((size, h), Image.BILINEAR), (k * size, 20))
-        draw.text((k * size + 4, 4), f"stage {k} ({kind}, frame 0)", fill=(0, 0, 0))
+        draw.text((k * size + 4, 4), f"stage {k} ({kind}, frame 0{'' if shown == 'rgb' else ', ' + shown})",
+                  fill=(0, 0, 0))
     for k in range(1, stages):
         pair = changes.pair(k - 1, k)
         panel = change_map(clouds[k - 1], pair.points_removed, clouds[k], pair.points_added, size - 8, bounds)

@@ -212,7 +212,7 @@ _RNG = np.random.default_rng
     (lambda c: orbit(c, (0, 0), 10, float("inf"), 8), "altitude must be a finite number, got inf"),
     (lambda c: orbit(c, (0, 0), 10, 10, 2.5), "frames must be an integer from 2 to 1,000,000, got 2.5"),
     (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 20, fps=0), "fps must be a finite number > 0"),
-    (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 1e-7), "spacing must be a number of metres >= 0.004 (at most 10,000 passes"),
+    (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 1e-7), "spacing must be a number of metres >= 0.004 (at most 10,000 gaps between passes"),
     (lambda c: lawnmower(c, ((0, 0), (40, 40)), 10, 8, 20, pitch_deg=-120), "pitch_deg must be a number of degrees in [-90, 90]"),
     (lambda c: lawnmower(c, ((0, 0), (0, 40)), 10, 8, 20), "bounds must be (lo, hi), two finite (x, y) points with lo < hi"),
     (lambda c: spline_flythrough(c, ((0, 0, 2), (50, 50, 20)), 10, _RNG(0), fps=-10), "fps must be a finite number > 0, got -10"),

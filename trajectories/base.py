@@ -31,8 +31,9 @@ class BoundedChecker:
 
     def __init__(self, checker: MotionChecker, lo, hi):
         self.checker, self.lo, self.hi = checker, np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-        if self.lo.shape != (3,) or self.hi.shape != (3,) or np.any(self.lo > self.hi):
-            raise ValueError(f"bounds must be two 3-vectors with lo <= hi, got {lo} and {hi}")
+        if (self.lo.shape != (3,) or self.hi.shape != (3,) or not np.all(np.isfinite(self.lo) & np.isfinite(self.hi))
+                or np.any(self.lo > self.hi)):
+            raise ValueError(f"bounds must be two finite 3-vectors with lo <= hi, got {lo} and {hi}")
 
     def inside(self, position) -> bool:
         p = np.asarray(position, np.float64)
@@ -43,6 +44,13 @@ class BoundedChecker:
 
     def is_free(self, position) -> bool:
         return self.inside(position) and self.checker.is_free(position)
+
+
+def _plain(value):
+    """A numpy number or array as the Python number or list JSON can write."""
+    if isinstance(value, (np.generic, np.ndarray)):
+        return value.tolist()
+    raise TypeError(f"trajectory parameters must be JSON values or numpy numbers, got {type(value).__name__}")
 
 
 class TrajectoryError(ValueError):
@@ -60,6 +68,11 @@ class Trajectory:
     kind: str
     actions: list[str] = field(default_factory=list)
     params: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        # plain JSON values (numpy numbers and arrays a caller passed as parameters become
+        # Python numbers and lists), so that the header save writes always encodes
+        self.params = json.loads(json.dumps(self.params, default=_plain))
 
     def __len__(self) -> int:
         return len(self.poses)

@@ -12,7 +12,7 @@ from generator.checks import check_integer, check_number, fail
 from generator.geometry.camera import validate_rigid
 
 MAX_POSES = 1_000_000  # frames / steps + 1 of one trajectory (a Python loop per pose)
-MAX_PASSES = 10_000  # lawnmower lines across its box: spacing >= box height / MAX_PASSES
+MAX_PASSES = 10_000  # lawnmower gaps between lines (MAX_PASSES + 1 lines): spacing >= box height / MAX_PASSES
 MAX_WAYPOINTS = 1_000  # a fly-through's waypoints (at most 10,000 are drawn per attempt)
 MAX_ATTEMPTS = 1_000  # fly-through re-draws (each up to 10,000 free-space queries)
 MAX_DRAWS = 100_000  # modified random walk: heading draws in one blocked step (one move query each)

@@ -30,8 +30,9 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
                       speed: float = 3.0, waypoints: int = 6, pitch_deg: float = -15.0, fps: float = 10.0,
                       attempts: int = 50) -> Trajectory:
     """``frames`` poses flown at ``speed`` m/s through ``waypoints`` random free points
-    inside ``bounds`` ((xmin, ymin, zmin), (xmax, ymax, zmax)); retried until every leg
-    between consecutive poses is collision-free."""
+    inside ``bounds`` ((xmin, ymin, zmin), (xmax, ymax, zmax)); retried until every pose
+    lies in ``bounds`` (the curve overshoots its waypoints) and every leg between consecutive
+    poses is collision-free."""
     lo, hi = checks.box("bounds", bounds, 3)
     checks.count("frames", frames, 2)
     checks.generator("rng", rng)
@@ -61,6 +62,8 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
             continue
         s = np.linspace(0.0, length, frames)
         pos = np.column_stack([np.interp(s, cum, curve[:, k]) for k in range(3)])
+        if np.any((pos < lo) | (pos > hi)):  # the curve overshoots its waypoints: stay in the box
+            continue
         if not all(checker.can_move(a, b) for a, b in zip(pos[:-1], pos[1:])):
             continue
         ahead = np.column_stack([np.interp(np.minimum(s + 1.0, cum[-1]), cum, curve[:, k]) for k in range(3)])
@@ -71,4 +74,4 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
         return Trajectory(poses, timestamps(frames, fps), "spline", [""] * (frames - 1),
                           {"speed_m_s": speed, "waypoints": np.array(pts).tolist(), "pitch_deg": pitch_deg, "fps": fps})
     raise TrajectoryError(f"no collision-free fly-through of {length:.0f} m found in {attempts} attempts (the "
-                          "curve through the waypoints was too short or blocked): use fewer frames")
+                          "curve through the waypoints was too short, left the box or was blocked): use fewer frames")

@@ -65,7 +65,7 @@ def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spac
     checks.count("frames", frames, 2)
     least = float(hi[1] - lo[1]) / checks.MAX_PASSES
     check_number("spacing", spacing, least, valid=f"a number of metres >= {least:g} (at most "
-                 f"{checks.MAX_PASSES:,} passes across the {hi[1] - lo[1]:g} m of the bounds in y)")
+                 f"{checks.MAX_PASSES:,} gaps between passes across the {hi[1] - lo[1]:g} m of the bounds in y)")
     checks.pitch("pitch_deg", pitch_deg)
     checks.fps(fps)
     (x0, y0), (x1, y1) = bounds

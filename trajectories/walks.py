@@ -65,9 +65,9 @@ def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.r
     """``steps`` actions drawn uniformly from ``actions`` (default: the five); returns
     steps + 1 poses (start first). Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
     _check(start, steps, rng, step, angle, fps)
-    if not actions or any(a not in ACTIONS for a in actions):
+    choices = () if isinstance(actions, str) or not hasattr(actions, "__iter__") else tuple(actions)
+    if not choices or any(a not in ACTIONS for a in choices):
         raise ValueError(f"actions must be a non-empty list drawn from {', '.join(ACTIONS)}, got {actions!r}")
-    choices = tuple(actions)
     poses, taken = [np.array(start, dtype=np.float64)], []
     for _ in range(steps):
         action = choices[int(rng.integers(len(choices)))]

@@ -157,10 +157,19 @@ def _stage_deltas(plan, s: int, inner: float, band: tuple[float, float], centres
     for j in range(int(rng.integers(DELIVERIES[0], DELIVERIES[1] + 1))):
         name = MATERIALS[int(rng.choice(len(MATERIALS), p=weights / weights.sum()))]
         drng = stream(seed, "timeline", s, "delivery", j)
-        _add(plan, builders[name][0](drng), _candidates(drng, layout, -inner, inner, 60, centres), s * DELIVERY_UID + j)
+        if not _add(plan, builders[name][0](drng), _candidates(drng, layout, -inner, inner, 60, centres),
+                    s * DELIVERY_UID + j):
+            _skipped(plan, "Delivery")
     if rng.random() < P_CONTAINER and band[1] - band[0] > 3.0:
         crng = stream(seed, "timeline", s, "container")
-        _add(plan, props.container_stack(crng), _band_candidates(crng, band[0], band[1], 60), s * DELIVERY_UID + 999)
+        if not _add(plan, props.container_stack(crng), _band_candidates(crng, band[0], band[1], 60),
+                    s * DELIVERY_UID + 999):
+            _skipped(plan, "Delivery")
+
+
+def _skipped(plan, kind: str) -> None:
+    """Count an asset the stage could not place (site.json's ``skipped``, cumulative over stages)."""
+    plan.skipped[kind] = plan.skipped.get(kind, 0) + 1
 
 
 def _near_then_anywhere(rng: np.random.Generator, position, inner: float, n: int = 150):
