@@ -11,6 +11,7 @@ from ..geometry.camera import (
     intrinsics_from_blender,
     world_from_camera_from_blender,
 )
+from . import session
 
 
 class CameraError(ValueError):
@@ -48,12 +49,22 @@ def read_intrinsics(cam=None) -> Intrinsics:
 
 
 def detach_camera(cam) -> None:
-    """Make the camera free-flying: drop its animation and parent, keeping its current pose."""
+    """Make the camera the Simulator's: drop its animation and parent, keeping its current
+    pose; drop the animation and drivers of its lens, shift, sensor and clip range (camera
+    data), keeping their values at the current frame; and unbind cameras from timeline
+    markers, so that no frame switches the render to another camera than ``cam``."""
+    scene = bpy.context.scene
+    if cam.data.animation_data is not None:
+        session.set_frame(scene.frame_current)  # this frame's animated values written to the data
     world = cam.matrix_world.copy()
     cam.animation_data_clear()
+    cam.data.animation_data_clear()
     cam.parent = None
     cam.constraints.clear()
     cam.matrix_world = world
+    for marker in scene.timeline_markers:
+        marker.camera = None
+    scene.camera = cam
 
 
 def read_pose(cam=None) -> np.ndarray:

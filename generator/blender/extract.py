@@ -1,7 +1,10 @@
 """Turn the evaluated Blender scene into rigid mesh parts (numpy), with labels and motion.
 
-Every render-visible object instance that yields triangles (meshes, curves, text, metaballs;
-modifiers, geometry nodes and instancing evaluated) becomes one :class:`MeshPart`.
+Every object instance the render camera sees that yields triangles (meshes, curves, text,
+metaballs; modifiers, geometry nodes and instancing evaluated) becomes one :class:`MeshPart`.
+Objects hidden from camera rays (Visibility > Camera off, or in an indirect-only collection)
+are left out; holdouts and motion the parts cannot follow are refused (``refusal``); see
+docs/rendering.md, "What of a .blend is honoured".
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 
 from ..geometry.camera import affine_inverse, apply_affine, matmul_exact
 from ..geometry.parts import MeshPart, closed_and_orientation
-from .animation import dynamic_object_names
+from .animation import animated_visibility, deforming, dynamic_object_names, moves_within
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SPAWN_LABEL = "CameraSpawn"
@@ -30,13 +33,15 @@ def label_of(name: str) -> str:
 class DynamicBinding:
     """How to recompute a dynamic part's matrix at another frame.
 
-    world_from_object(t) = world(driver, t) @ offset, where ``driver`` is the object whose
-    evaluated matrix moves the part (the object itself, or the instancer of an instance).
+    world_from_object(t) = world(driver, t) @ offset [@ world(source, t)], where ``driver`` is
+    the object whose evaluated matrix moves the part (the object itself, or the instancer of an
+    instance) and ``source``, for a collection instance of a moving object, that object.
     """
 
     part: int
     driver: str
     offset: np.ndarray
+    source: str | None = None
 
 
 def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -93,64 +98,183 @@ class ExtractedScene:
     parts: list[MeshPart]
     bindings: list[DynamicBinding]
     spawn: MeshPart | None
+    refusal: str | None = None  # one line: why this scene cannot be simulated (objects.object_table raises it)
+
+
+@dataclass
+class _LayerFlags:
+    """Objects of the view layer in an indirect-only or holdout collection (or holdout themselves)."""
+
+    indirect_only: set[str]
+    holdout: set[str]
+
+    @staticmethod
+    def of(view_layer) -> "_LayerFlags":
+        objs = list(view_layer.objects)
+        return _LayerFlags({o.name for o in objs if o.indirect_only_get(view_layer=view_layer)},
+                           {o.name for o in objs if o.holdout_get(view_layer=view_layer)})
+
+
+def _anchor(inst):
+    """The object whose view-layer flags apply: the instancer of an instance, else the object."""
+    return _original(inst.parent) if inst.is_instance else _original(inst.object)
+
+
+def _camera_sees(inst, flags: _LayerFlags) -> bool:
+    """Cycles' rule: the object and its instancer visible to camera rays, the instancer (the
+    object itself when not an instance) not in an indirect-only collection."""
+    anchor = _anchor(inst)
+    return _original(inst.object).visible_camera and anchor.visible_camera and anchor.name not in flags.indirect_only
+
+
+def _original(obj):
+    return obj.original if obj.original is not None else obj
+
+
+def _hidden_instancer_child(obj) -> bool:
+    """Renders hide the original of an object instanced on its parent's vertices or faces
+    (the viewport shows it); metaballs keep it."""
+    parent = obj.parent
+    return obj.type != "META" and parent is not None and parent.instance_type in ("VERTS", "FACES")
+
+
+def _particles_move(psys, scene) -> bool:
+    """Particle copies that move, appear or die during the scene's frames (the copies are
+    taken once at load): emitter particles with physics, or born or dying in the frame range;
+    hair with dynamics."""
+    s = psys.settings
+    if s.type == "HAIR":
+        return bool(psys.use_hair_dynamics)
+    shortest = s.lifetime * (1.0 - s.lifetime_random)
+    return s.physics_type != "NO" or s.frame_end > scene.frame_start or s.frame_start + shortest < scene.frame_end
+
+
+def _instance_motion(inst, source, instancer, dynamic: set[str], memo: dict):
+    """(source object name to bind, or None; refusal or None) for an instance whose source
+    object may move relative to its instancer."""
+    key = (source.name, instancer.name)
+    if key not in memo:
+        memo[key] = source.name in dynamic and moves_within(source, instancer)
+    if not memo[key]:
+        return None, None
+    coll = instancer.instance_collection if instancer.instance_type == "COLLECTION" else None
+    if coll is not None and inst.particle_system is None and source.name in coll.all_objects:
+        return source.name, None
+    return None, (f"object {source.name!r} moves and is instanced by {instancer.name!r} (particles, vertices, faces, "
+                  "geometry nodes or a nested collection); only a moving object directly in an instanced collection "
+                  "is supported")
+
+
+def _first(*reasons):
+    return next((r for r in reasons if r), None)
+
+
+@dataclass
+class _Found:
+    key: str
+    name: str
+    world: np.ndarray
+    is_dyn: bool
+    driver: str
+    parent_world: np.ndarray | None
+    source: str | None
+
+
+def _instance(inst, scene, dynamic: set[str], memo: dict) -> tuple[_Found, str | None]:
+    """An instance's description, and a refusal (or None) if its motion cannot be followed."""
+    obj, parent = _original(inst.object), _original(inst.parent)
+    pid = "-".join(str(i) for i in inst.persistent_id if i != 0x7FFFFFFF)
+    source, refusal = _instance_motion(inst, obj, parent, dynamic, memo)
+    psys = inst.particle_system
+    if psys is not None and _particles_move(psys, scene):
+        refusal = (f"the particles of {parent.name!r} ({psys.name}) move, appear or die during frames "
+                   f"{scene.frame_start}-{scene.frame_end}; copies are taken once at load: use Physics 'None' "
+                   "with every particle alive over those frames, or hair")
+    found = _Found(f"{parent.name}/{obj.name}#{pid}", obj.name, _matrix(inst.matrix_world),
+                   parent.name in dynamic or source is not None, parent.name, _matrix(inst.parent.matrix_world), source)
+    return found, refusal
+
+
+def _simulated(inst, flags: _LayerFlags) -> bool:
+    """The instance shows triangles to the render camera."""
+    obj = inst.object
+    if obj.type not in GEOMETRY_TYPES or not inst.show_self:
+        return False
+    if not inst.is_instance and _hidden_instancer_child(_original(obj)):
+        return False
+    return _camera_sees(inst, flags)
+
+
+def _holdout(inst, flags: _LayerFlags) -> str | None:
+    anchor = _anchor(inst)
+    if anchor.name not in flags.holdout:
+        return None
+    return (f"object {anchor.name!r} is a holdout (Visibility > Holdout, or its collection's holdout in the view "
+            "layer): the ground truth cannot show a hole; turn holdout off or disable the object in renders")
 
 
 def extract_parts() -> ExtractedScene:
     """Parts of the current frame, sorted by a stable key (name; instances by instancer,
     name and persistent id). Static parts are baked into world coordinates."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
+    scene, flags = bpy.context.scene, _LayerFlags.of(bpy.context.view_layer)
     dynamic = dynamic_object_names()
-    cache: dict = {}
-    found = []
+    cache, memo, refusals, rendered, found = {}, {}, [], set(), []
     spawn = None
     for inst in depsgraph.object_instances:
-        obj = inst.object
-        if obj.type not in GEOMETRY_TYPES:
+        if not _simulated(inst, flags):
             continue
         if inst.is_instance:
-            if not inst.show_self:
-                continue
-            parent = inst.parent
-            name = obj.original.name if obj.original is not None else obj.name
-            pid = "-".join(str(i) for i in inst.persistent_id if i != 0x7FFFFFFF)
-            key = f"{parent.name}/{name}#{pid}"
-            driver = parent.original.name if parent.original is not None else parent.name
-            is_dyn = driver in dynamic
-            parent_world = _matrix(parent.matrix_world)
+            f, refusal = _instance(inst, scene, dynamic, memo)
+            refusals.append(refusal)
         else:
-            if not inst.show_self:
-                continue
-            name = obj.original.name if obj.original is not None else obj.name
-            key, driver = name, name
-            is_dyn = name in dynamic
-            parent_world = None
-        world = _matrix(inst.matrix_world)
-        verts, faces, closed, outward = _evaluated_mesh(obj, cache)
+            name = _original(inst.object).name
+            f = _Found(name, name, _matrix(inst.matrix_world), name in dynamic, name, None, None)
+        refusals.append(_holdout(inst, flags))
+        verts, faces, closed, outward = _evaluated_mesh(inst.object, cache)
         if len(faces) == 0:
             continue
-        label = label_of(name)
-        if label == SPAWN_LABEL:
-            wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
+        if label_of(f.name) == SPAWN_LABEL:
+            wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
             c, o = closed_and_orientation(wv, faces)
-            spawn = MeshPart(key, label, wv, faces.copy(), closed=c, outward=o)
+            spawn = MeshPart(f.key, SPAWN_LABEL, wv, faces.copy(), closed=c, outward=o)
             continue
-        found.append((key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, name))
+        rendered.add(_original(inst.object))
+        found.append((f, verts, faces, closed, outward))
 
     if spawn is None:
         spawn = _hidden_spawn_volume()
-    found.sort(key=lambda f: f[0])
+    parts, bindings = _parts_of(sorted(found, key=lambda x: x[0].key), depsgraph)
+    shapes = [o for o in bpy.data.objects if o.type in GEOMETRY_TYPES or o.type == "EMPTY"]  # not lights, cameras
+    refusal = _first(*refusals, animated_visibility(shapes), deforming(rendered))
+    return ExtractedScene(parts, bindings, spawn, refusal)
+
+
+def _parts_of(found, depsgraph) -> tuple[list[MeshPart], list[DynamicBinding]]:
     parts, bindings = [], []
-    for key, label, verts, faces, closed, outward, world, is_dyn, driver, parent_world, source in found:
-        if is_dyn:
-            offset = matmul_exact(affine_inverse(parent_world), world) if parent_world is not None else np.eye(4)
-            bindings.append(DynamicBinding(len(parts), driver, offset))
-            parts.append(MeshPart(key, label, verts.copy(), faces, True, world, closed, outward, source))
+    for f, verts, faces, closed, outward in found:
+        label = label_of(f.name)
+        if f.is_dyn:
+            offset = _offset(f.world, f.parent_world, f.source, depsgraph)
+            bindings.append(DynamicBinding(len(parts), f.driver, offset, f.source))
+            parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name))
         else:
-            wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
-            if np.linalg.det(world[:3, :3]) < 0:
+            wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
+            if np.linalg.det(f.world[:3, :3]) < 0:
                 outward = -outward  # a mirroring matrix flips the winding
-            parts.append(MeshPart(key, label, wv, faces, False, np.eye(4), closed, outward, source))
-    return ExtractedScene(parts, bindings, spawn)
+            parts.append(MeshPart(f.key, label, wv, faces, False, np.eye(4), closed, outward, f.name))
+    return parts, bindings
+
+
+def _offset(world, parent_world, source, depsgraph) -> np.ndarray:
+    """The constant of a binding: world = driver @ offset (@ source)."""
+    if parent_world is None:
+        return np.eye(4)
+    offset = matmul_exact(affine_inverse(parent_world), world)
+    if source is None:
+        return offset
+    moving = bpy.data.objects[source].evaluated_get(depsgraph)
+    return matmul_exact(offset, affine_inverse(_matrix(moving.matrix_world)))
 
 
 def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
@@ -159,7 +283,10 @@ def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
     out = {}
     for b in bindings:
         obj = bpy.data.objects[b.driver].evaluated_get(depsgraph)
-        out[b.part] = matmul_exact(_matrix(obj.matrix_world), b.offset)  # BLAS-free
+        m = matmul_exact(_matrix(obj.matrix_world), b.offset)  # BLAS-free
+        if b.source is not None:
+            m = matmul_exact(m, _matrix(bpy.data.objects[b.source].evaluated_get(depsgraph).matrix_world))
+        out[b.part] = m
     return out
 
 

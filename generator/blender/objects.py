@@ -33,9 +33,12 @@ def check_names(name: str, value) -> tuple[str, ...]:
 def object_table(extracted, filter_object_names: tuple[str, ...], instance_names, blend: Path):
     """(parts, dynamic bindings, labels) of the extracted scene: the ``filter_object_names``
     objects dropped, parts ordered as ``instance_names`` when given (docs/simulator-api.md),
-    labels as :func:`label_table` orders them."""
+    labels as :func:`label_table` orders them. SceneError if the extraction refused the scene
+    (a holdout, animated render visibility, motion the rigid parts cannot follow)."""
+    if extracted.refusal:
+        raise SceneError(f"{blend}: {extracted.refusal}")
     if not extracted.parts:
-        raise SceneError(f"{blend} has no render-visible mesh objects with faces")
+        raise SceneError(f"{blend} has no render-visible mesh objects with faces (that the camera sees)")
     known = {p.name.split("/")[0] for p in extracted.parts}
     absent = [n for n in filter_object_names if n not in known]
     if absent:  # a typo would filter nothing; the paper's scripts may name objects a scene lacks

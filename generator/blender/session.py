@@ -11,6 +11,7 @@ import ctypes
 import os
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 _o3d = sys.modules.get("generator.geometry.o3d")
@@ -135,15 +136,20 @@ def make_viewport_match_render() -> None:
 
     In background mode Python only gets the viewport depsgraph, so render-visibility and
     render settings are copied onto their viewport counterparts: object and collection
-    visibility, modifier enablement, subdivision levels and simplify settings.
+    visibility, whether an instancer shows itself, modifier enablement, subdivision levels,
+    particle amounts and display, and simplify settings. Geometry nodes' "Is Viewport" cannot
+    be matched: a warning names the node groups that use it (docs/rendering.md).
     """
     scene = bpy.context.scene
     for obj in bpy.data.objects:
         obj.hide_viewport = obj.hide_render
+        obj.show_instancer_for_viewport = obj.show_instancer_for_render
         for mod in obj.modifiers:
             mod.show_viewport = mod.show_render
             if hasattr(mod, "render_levels") and hasattr(mod, "levels"):
                 mod.levels = mod.render_levels
+    for settings in bpy.data.particles:
+        _particles_as_rendered(settings)
     for coll in bpy.data.collections:
         coll.hide_viewport = coll.hide_render
 
@@ -161,3 +167,28 @@ def make_viewport_match_render() -> None:
     r.simplify_subdivision = r.simplify_subdivision_render
     r.simplify_child_particles = r.simplify_child_particles_render
     bpy.context.view_layer.update()
+    _warn_unmatched()
+
+
+def _particles_as_rendered(settings) -> None:
+    """Viewport particles as the render makes them: every particle, the render's children
+    and path steps, drawn as rendered (a 'DOT' or 'NONE' display instances nothing)."""
+    settings.display_percentage = 100
+    settings.display_method = "RENDER"
+    settings.child_percent = settings.rendered_child_count
+    settings.display_step = settings.render_step
+
+
+def _warn_unmatched() -> None:
+    """Warn about what a render shows that the ground truth cannot match (docs/rendering.md)."""
+    groups = sorted(g.name for g in bpy.data.node_groups
+                    if any(n.bl_idname == "GeometryNodeIsViewport" for n in getattr(g, "nodes", ())))
+    if groups:
+        warnings.warn(f"geometry node group(s) {', '.join(map(repr, groups))} use 'Is Viewport': the ground truth "
+                      "takes its viewport branch, the render its render branch (docs/rendering.md)", stacklevel=3)
+    strands = sorted(o.name for o in bpy.data.objects if not o.hide_render and any(
+        m.type == "PARTICLE_SYSTEM" and m.show_render and m.particle_system.settings.render_type == "PATH"
+        for m in o.modifiers))
+    if strands:
+        warnings.warn(f"{', '.join(map(repr, strands))} render(s) particle strands (render type Path), which have no "
+                      "triangles: the ground truth lacks them (docs/rendering.md)", stacklevel=3)
