@@ -25,7 +25,7 @@ MATH_DISPATCHED = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh",
 
 # (file, expression): why it cannot change a byte of a seed's output
 ALLOWED = {
-    ("generator/blender/extract.py", "np.linalg.det(world[:3, :3])"): "only its sign (a mirrored object)",
+    ("generator/blender/extract.py", "np.linalg.det(f.world[:3, :3])"): "only its sign (a mirrored object)",
     ("generator/geometry/boxes.py", "(planes < 0).astype(np.uint8) @ np.array([1, 2, 4, 8, 16], np.uint8)"):
         "integers",
     ("generator/geometry/camera.py", "out @ CV_FROM_BLENDER_CAMERA"): "a signed permutation: every sum has one term",
