@@ -24,6 +24,10 @@ from .camera import apply_affine, matmul_exact, orthogonal_factor, rows_times, w
 from .portable_math import vector_norm
 
 NEAR = 1e-6  # metres: geometry at planar depth below this is treated as behind the camera
+# relative spread of an object matrix's axis lengths below which its scale counts as uniform:
+# Blender stores matrices in float32 (axis lengths of a pure rotation differ by ~1e-7), and
+# a box carried under a spread of 1e-6 is off by at most a millionth of its size
+UNIFORM = 1e-6
 
 
 @dataclass(frozen=True)
@@ -66,7 +70,7 @@ def moved_box(local: Box3D, vertices: np.ndarray, matrix: np.ndarray) -> Box3D:
     scaled vertices and carried by the rigid part alone."""
     m = np.asarray(matrix, float)
     scale = vector_norm(m[:3, :3].T)  # the length of each object axis in the world
-    if scale.max() - scale.min() <= 1e-9 * scale.max():
+    if scale.max() - scale.min() <= UNIFORM * scale.max():
         return local.transformed(m)
     rigid = m.copy()
     rigid[:3, :3] = m[:3, :3] / np.where(scale > 0, scale, 1.0)
