@@ -94,6 +94,9 @@ VIEWPORT_VS_RENDER = {  # scene change -> the label whose pixels are compared
     "child of a vertex instancer": (_verts_child, "Crate"),
     "Visibility > Camera off": (lambda: setattr(_obj("Crate"), "visible_camera", False), "Crate"),
     "indirect-only collection": (lambda: setattr(_in_collection(_obj("Crate")), "indirect_only", True), "Crate"),
+    # emitted on frame 1 only, drawn before birth and after death: still copies (accepted)
+    "still emitter particles shown unborn and dead": (lambda: _still_emitter(frame_start=1, frame_end=1, lifetime=10,
+                                                                             show_unborn=True, use_dead=True), "Pole"),
 }
 
 
@@ -124,6 +127,8 @@ REFUSED = {  # scene change -> words of the one-line SceneError
                                                                             (3, 1, 2))), "'Pole' moves"),
     "animated shape keys": (lambda: _shape_keys(_obj("Crate")), "'Crate' has animated shape keys"),
     "mesh deformed by an animated armature": (lambda: _deformed(_obj("Crate")), "deformed by the animated armature"),
+    "mesh with an armature parent": (lambda: setattr(_obj("Crate"), "parent", _rig()) or setattr(
+        _obj("Crate"), "parent_type", "ARMATURE"), "deformed by the animated armature 'Rig'"),
 }
 
 
@@ -209,5 +214,28 @@ def test_animated_object_of_an_instanced_collection_moves(tmp_path):
     bpy.context.scene.collection.objects.link(inst)
     sim = _load(scenes.save(tmp_path / "s.blend"))
     assert sim.dynamic_objects == ["VehicleInst/Crate#0"]
+    sim.set_frame(10)
+    _assert_as_rendered(sim, "Crate")
+
+
+def test_objects_outside_the_scene_do_not_refuse_it(tmp_path):
+    """An object of no scene (an orphan kept in the file) with keyed visibility is not the
+    scene's: the scene loads."""
+    _yard()
+    orphan = bpy.data.objects.new("Orphan", bpy.data.meshes.new("Orphan"))
+    orphan.use_fake_user = True
+    _keyframed(orphan, "hide_render", True, False)
+    sim = Simulator(scenes.save(tmp_path / "s.blend"))
+    assert "Orphan" not in sim.labels
+
+
+def test_an_armature_constraint_on_a_posed_bone_moves_the_object(tmp_path):
+    _yard()
+    crate, arm = _obj("Crate"), _rig()
+    con = crate.constraints.new("ARMATURE")
+    target = con.targets.new()
+    target.target, target.subtarget = arm, "Bone"
+    sim = _load(scenes.save(tmp_path / "s.blend"))
+    assert sim.dynamic_objects == ["Crate"]
     sim.set_frame(10)
     _assert_as_rendered(sim, "Crate")

@@ -109,11 +109,17 @@ class Motion:
         return any(self._constraint_moves(con, arm, stack) for pb in arm.pose.bones for con in pb.constraints)
 
     def _constraint_moves(self, con, owner, stack) -> bool:
-        target = getattr(con, "target", None)
-        if con.mute or not getattr(con, "enabled", True) or target is None or target.name == owner.name:
+        if con.mute or not getattr(con, "enabled", True):
             return False
-        on_bone = bool(getattr(con, "subtarget", ""))
-        return con.type == "FOLLOW_PATH" or self.moves(target, stack) or (on_bone and self.pose_moves(target, stack))
+        # one target, or an Armature constraint's list of (armature, bone) targets
+        targets = [(t.target, t.subtarget) for t in con.targets] if hasattr(con, "targets") else [
+            (getattr(con, "target", None), getattr(con, "subtarget", ""))]
+        return any(self._target_moves(con, target, bone, owner, stack) for target, bone in targets)
+
+    def _target_moves(self, con, target, bone, owner, stack) -> bool:
+        if target is None or target.name == owner.name:
+            return False
+        return con.type == "FOLLOW_PATH" or self.moves(target, stack) or (bool(bone) and self.pose_moves(target, stack))
 
 
 def dynamic_object_names() -> set[str]:
@@ -146,9 +152,11 @@ def deforming(objects) -> str | None:
         if varying_paths(getattr(obj.data, "shape_keys", None)):
             return (f"object {obj.name!r} has animated shape keys (a deforming mesh); parts are rigid: "
                     "apply or remove them")
-        for mod in obj.modifiers:
-            arm = getattr(mod, "object", None) if mod.type == "ARMATURE" and mod.show_render else None
-            if arm is not None and (motion.pose_moves(arm) or (motion.moves(arm) and not motion.moves(obj))):
+        arms = [mod.object for mod in obj.modifiers if mod.type == "ARMATURE" and mod.show_render and mod.object]
+        if obj.parent is not None and obj.parent_type == "ARMATURE":  # a hidden armature deform
+            arms.append(obj.parent)
+        for arm in arms:
+            if motion.pose_moves(arm) or (motion.moves(arm) and not motion.moves(obj)):
                 return (f"object {obj.name!r} is deformed by the animated armature {arm.name!r}; parts are rigid: "
                         "parent it to a bone instead, or apply the modifier")
     return None

@@ -146,7 +146,9 @@ def _particles_move(psys, scene) -> bool:
     if s.type == "HAIR":
         return bool(psys.use_hair_dynamics)
     shortest = s.lifetime * (1.0 - s.lifetime_random)
-    return s.physics_type != "NO" or s.frame_end > scene.frame_start or s.frame_start + shortest < scene.frame_end
+    born_later = s.frame_end > scene.frame_start and not s.show_unborn  # unborn copies are drawn where they will be
+    dying = s.frame_start + shortest < scene.frame_end and not s.use_dead  # dead copies are drawn where they died
+    return s.physics_type != "NO" or born_later or dying
 
 
 def _instance_motion(inst, source, instancer, dynamic: set[str], memo: dict):
@@ -245,7 +247,10 @@ def extract_parts() -> ExtractedScene:
     if spawn is None:
         spawn = _hidden_spawn_volume()
     parts, bindings = _parts_of(sorted(found, key=lambda x: x[0].key), depsgraph)
-    shapes = [o for o in bpy.data.objects if o.type in GEOMETRY_TYPES or o.type == "EMPTY"]  # not lights, cameras
+    # this scene's objects (not other scenes' or orphans), hidden ones included: a keyed
+    # hide_render may show them later; and what instancing brings in
+    scene_objects = set(scene.objects) | rendered | {_original(i.parent) for i in depsgraph.object_instances if i.is_instance}
+    shapes = [o for o in scene_objects if o.type in GEOMETRY_TYPES or o.type == "EMPTY"]  # not lights, cameras
     refusal = _first(*refusals, animated_visibility(shapes), deforming(rendered))
     return ExtractedScene(parts, bindings, spawn, refusal)
 
