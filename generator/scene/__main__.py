@@ -19,7 +19,7 @@ def main(argv=None) -> int:
                    help="site seed, an integer from 0 to 2**63-1")
     p.add_argument("--preset", default="medium", choices=sorted(PRESETS), help="site preset (default: medium)")
     p.add_argument("--out", type=out_folder, default=Path("site"), help="output folder (default: ./site)")
-    p.add_argument("--size", type=float, help="site side in metres (default: the preset's)")
+    p.add_argument("--size", type=float, help="site side in metres, up to 1000 and at least small 42, medium 51, large 53 (default: the preset's)")
     p.add_argument("--density", type=float, help="object density multiplier, 1 = typical (default: the preset's)")
     p.add_argument("--layout", choices=LAYOUTS, help="arrangement of the props (default: scattered)")
     p.add_argument("--phase", type=float, help="share of the planned floors built, 0 to 1 (default: random per building)")

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.portable_math import sincos, tan, vector_norm
+from ..geometry.portable_math import cos, sincos, tan, vector_norm
 from .assets import Asset, Part
-from .meshes import MeshBuilder
+from .meshes import MeshBuilder, rotation_x
 
 CONTAINER_COLOURS = ("container_blue", "container_red", "container_green", "container_grey", "container_orange", "container_white")
 
@@ -85,8 +85,8 @@ def cabin_block(rng: np.random.Generator) -> Asset:
         steps = 14
         for k in range(steps):
             stair.box((run / steps, 0.9, 0.05), (-length / 2 + 0.6 + (k + 0.5) * run / steps, y0 + 0.5, (k + 1) * h / steps), material="steel_galvanized")
-        for s in (0.0, 1.0):
-            stair.cylinder(0.03, (-length / 2 + 0.6, y0 + s, 0), (-length / 2 + 0.6 + run, y0 + s, h), segments=6, material="steel_galvanized")
+        for s in (0.0, 1.0):  # stringers: start 0.03 m (their radius) up so the tilted end caps stay above the ground
+            stair.cylinder(0.03, (-length / 2 + 0.6, y0 + s, 0.03), (-length / 2 + 0.6 + run, y0 + s, h), segments=6, material="steel_galvanized")
         stair.box((1.2, 1.0, 0.06), (-length / 2 + 0.6 + run + 0.6, y0 + 0.5, h + 0.03), material="steel_galvanized")  # landing
         stair.cylinder(0.04, (-length / 2 + 0.6 + run + 1.1, y0 + 0.1, 0), (-length / 2 + 0.6 + run + 1.1, y0 + 0.1, h), segments=6, material="steel_galvanized")
         parts.append(Part("Cabin", stair.build()))
@@ -172,13 +172,18 @@ def pipe_stack(rng: np.random.Generator) -> Asset:
         for x in (-length / 3, length / 3):  # timber bearers under steel pipes
             b.box((0.15, base * 2 * r + 0.3, 0.1), (x, 0, 0.05), material="wood")
     z0 = 0.0 if concrete else 0.1
+    segments = 28 if concrete else 16
+    # one pipe along x at the origin, turned half a segment about its axis so that a flat
+    # facet (not an edge) lies at the bottom: it rests on the ground or the bearers
+    pipe = MeshBuilder().tube(r, r - wall, (-length / 2, 0, 0), (length / 2, 0, 0), segments=segments).build()
+    turn = rotation_x(np.pi / segments)
+    apothem = r * cos(np.pi / segments)
     for row in range(base):
         n = base - row
         for k in range(n):
             y = (k - (n - 1) / 2) * 2 * r * 1.001
-            z = z0 + r + row * r * np.sqrt(3) * 1.001
-            b.tube(r, r - wall, (-length / 2, y, z), (length / 2, y, z), segments=28 if concrete else 16,
-                   material="concrete" if concrete else "steel_rust")
+            z = z0 + apothem + row * r * np.sqrt(3) * 1.001
+            b.add(pipe.vertices, pipe.quads, pipe.tris, "concrete" if concrete else "steel_rust", rotation=turn, offset=(0, y, z))
     return Asset("PipeStack", [Part("PipeStack", b.build())], (length, base * 2 * r + 0.3))
 
 
@@ -198,22 +203,25 @@ def timber_stack(rng: np.random.Generator) -> Asset:
 
 
 def rebar_bundles(rng: np.random.Generator) -> Asset:
-    """Bundles of 30-60 bars (8-25 mm, 6-12 m long) lying on timber bearers."""
+    """One to three bundles (0.3-0.5 m across) of bars (12-40 mm, 6-12 m long) lying on
+    timber bearers."""
     length = rng.uniform(6.0, 12.0)
     count = int(rng.integers(1, 4))
+    pitch = 0.6  # bundle centre to centre (0.5 m at most across, plus a gap)
     b = MeshBuilder()
     for x in (-length / 3, 0, length / 3):
-        b.box((0.12, count * 0.55 + 0.2, 0.1), (x, 0, 0.05), material="wood_dark")
+        b.box((0.12, count * pitch + 0.2, 0.1), (x, 0, 0.05), material="wood_dark")
     for c in range(count):
-        r = rng.uniform(0.004, 0.0125)
-        bars = int(rng.integers(30, 61))
-        rows = int(np.ceil(np.sqrt(bars)))
-        for k in range(bars):
-            i, j = divmod(k, rows)
-            y = (c - (count - 1) / 2) * 0.55 + (j - (rows - 1) / 2) * 2.05 * r
-            z = 0.1 + r + i * 2.05 * r
-            b.cylinder(r, (-length / 2, y, z), (length / 2, y, z), segments=6, material="rebar")
-    return Asset("RebarBundle", [Part("Rebar", b.build())], (length, count * 0.55 + 0.2))
+        r = rng.uniform(0.006, 0.02)
+        across = rng.uniform(0.3, 0.5)
+        cols = int(np.ceil(across / (2.05 * r)))  # bars side by side: the bundle is ``across`` wide
+        layers = max(1, cols // 2)  # and half as tall, lying flat
+        for i in range(layers):
+            for j in range(cols):
+                y = (c - (count - 1) / 2) * pitch + (j - (cols - 1) / 2) * 2.05 * r
+                z = 0.1 + r + i * 2.05 * r
+                b.cylinder(r, (-length / 2, y, z), (length / 2, y, z), segments=6, material="rebar")
+    return Asset("RebarBundle", [Part("Rebar", b.build())], (length, count * pitch + 0.2))
 
 
 def fence_run(length: float) -> MeshBuilder:
@@ -278,7 +286,7 @@ def portable_toilets(rng: np.random.Generator) -> Asset:
     for k in range(count):
         b = MeshBuilder()
         b.box((1.1, 1.2, 2.2), (0, 0, 1.1), material="plastic_toilet")
-        b.box((1.2, 1.3, 0.1), (0, 0, 2.25), material="plastic_white")
+        b.box((1.15, 1.2, 0.1), (0, 0, 2.25), material="plastic_white")  # roof: no wider than the 1.2 m body
         b.box((0.04, 0.8, 1.9), (0.57, 0, 1.0), material="plastic_toilet_door")
         b.cylinder(0.04, (-0.4, 0.4, 2.3), (-0.4, 0.4, 2.6), segments=8, material="plastic_white")
         parts.append(Part("PortableToilet", b.build(), location=(0, (k - (count - 1) / 2) * 1.25, 0)))

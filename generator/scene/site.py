@@ -46,8 +46,17 @@ class SiteParams:
     frames: int = 250
     fps: float = 10.0
 
+    @property
+    def min_size(self) -> float:
+        """Smallest site side whose middle holds a building: the ground inside the road loop
+        (road inset, half the 7 m road and 1 m clear on each side) at least 20 m across.
+        Presets: small 42 m, medium 51 m, large 53 m."""
+        return float(math.ceil(2 * (self.road_inset + 4.5 + 10.0)))
+
     def validated(self) -> "SiteParams":
         check_number("site size", self.size, 30, 1000, valid="a number of metres in [30, 1000]")
+        if self.size < self.min_size:  # smaller, the middle inside the road loop holds no building
+            raise ValueError(f"site size {self.size:g} m is too small for a road inset of {self.road_inset:g} m; the minimum is {self.min_size:g} m")
         check_number("object density", self.density, 0, 5)
         if self.layout not in LAYOUTS:
             raise ValueError(f"unknown layout {self.layout!r}; choose one of {', '.join(LAYOUTS)}")

@@ -329,8 +329,9 @@ def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float,
             _lattice_member(slew, (x, p[1], p[2]), (x2, q[1], q[2]), 0.04, "crane_paint")
     slew.box((counter, 1.9, 0.12), (-counter / 2, 0, 0.96), material="steel_painted")  # walkway
     n_weights = int(rng.integers(3, 6))
-    for k in range(n_weights):
-        slew.box((0.95, 2.0, 2.4), (-counter + 0.6 + k * 1.0, 0, 1.02 + 1.2), material="concrete")
+    for k in range(n_weights):  # concrete slabs (0.95 x 1.8 x 0.5), two high, on the bottom chords:
+        for lev in range(2):  # between the railings (|y| < 0.925) and under the top chord
+            slew.box((0.95, 1.8, 0.49), (-counter + 0.6 + k * 1.0, 0, 1.07 + 0.25 + lev * 0.5), material="concrete")
     slew.box((counter, 0.05, 1.0), (-counter / 2, 0.95, 1.5), material="steel_painted")  # railing panels
     slew.box((counter, 0.05, 1.0), (-counter / 2, -0.95, 1.5), material="steel_painted")
 

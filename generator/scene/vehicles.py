@@ -67,23 +67,25 @@ def route_poses(points: np.ndarray, speed: float, frames: int, fps: float, offse
 
 
 def truck(rng: np.random.Generator, kind: str, route: np.ndarray, speed: float, offset: float, frames: int, fps: float) -> Asset:
-    """A three-axle dump or mixer truck (8.5-9.5 m, 2.5 m wide) driving the closed
+    """A three-axle dump truck (8-9 m long, about 3.3 m tall, a ~5 m tipper) or concrete
+    mixer (9-10 m, about 3.9 m tall), 2.5 m wide, driving the closed
     ``route`` (polyline, metres) at ``speed`` m/s; its wheels roll (rotation = distance /
     radius) and a mixer's drum turns."""
-    length = rng.uniform(8.5, 9.5)
+    length = rng.uniform(8.0, 9.0) if kind == "dump" else rng.uniform(9.0, 10.0)
+    cab_h = 2.05 if kind == "dump" else 2.3  # cab from 1.25 m up: tops at 3.3 and 3.55 m
     body = MeshBuilder()
     paint = "truck_paint"
     body.box((length - 0.4, 0.9, 0.35), (0, 0, 0.95), material="steel_dark")  # chassis
     cab_x = length / 2 - 1.2
-    body.box((2.2, 2.5, 2.3), (cab_x, 0, 1.15 + 1.15 + 0.1), material=paint)  # cab
-    body.box((0.05, 2.1, 0.9), (cab_x + 1.11, 0, 2.9), material="glass")  # windscreen
+    body.box((2.2, 2.5, cab_h), (cab_x, 0, 1.25 + cab_h / 2), material=paint)  # cab
+    body.box((0.05, 2.1, 0.9), (cab_x + 1.11, 0, 1.25 + cab_h - 0.65), material="glass")  # windscreen
     body.box((0.3, 2.4, 0.35), (length / 2 - 0.05, 0, 0.85), material="steel_dark")  # bumper
     for s in (-1, 1):  # fenders over the front wheels
         body.box((1.3, 0.45, 0.08), (cab_x + 0.1, s * 1.05, 1.2), material=paint)
     parts = [Part("Truck", None)]  # filled below
     drum_part = None
     if kind == "dump":
-        bl, bw, bh = length - 3.2, 2.4, rng.uniform(1.2, 1.4)
+        bl, bw, bh = length - 3.5, 2.4, rng.uniform(1.2, 1.4)  # tipper 4.5-5.5 m
         bx = -length / 2 + bl / 2 + 0.2
         z0 = 1.15
         body.box((bl, bw, 0.1), (bx, 0, z0 + 0.05), material=paint)
@@ -92,14 +94,14 @@ def truck(rng: np.random.Generator, kind: str, route: np.ndarray, speed: float, 
         body.box((0.08, bw - 0.16, bh), (bx - bl / 2 + 0.04, 0, z0 + 0.1 + bh / 2), material=paint)
         body.box((0.08, bw - 0.16, bh + 0.4), (bx + bl / 2 - 0.04, 0, z0 + 0.1 + (bh + 0.4) / 2), material=paint)
     else:
-        body.box((0.3, 1.2, 1.4), (cab_x - 1.4, 0, 1.8), material="steel_dark")  # drum stand, front
-        body.box((0.3, 1.2, 1.0), (-length / 2 + 0.6, 0, 1.6), material="steel_dark")  # drum stand, rear
+        body.box((0.3, 1.2, 1.57), (cab_x - 1.4, 0, 1.1 + 1.57 / 2), material="steel_dark")  # drum stand, front
+        body.box((0.3, 1.2, 1.17), (-length / 2 + 0.6, 0, 1.1 + 1.17 / 2), material="steel_dark")  # drum stand, rear
         drum = MeshBuilder()
         dl = rng.uniform(4.3, 4.8)
         drum.cone(0.7, 1.15, (-dl / 2, 0, 0), (0.2, 0, 0), segments=24, material="mixer_drum")
         drum.cone(1.15, 0.45, (0.2, 0, 0), (dl / 2, 0, 0), segments=24, material="mixer_drum")
         # the drum's axis rises towards the rear at about 15 degrees
-        drum_part = Part("Truck", drum.build(), location=(-0.6, 0, 2.45), rotation=(0.0, np.radians(15), 0.0))
+        drum_part = Part("Truck", drum.build(), location=(-0.6, 0, 2.62), rotation=(0.0, np.radians(15), 0.0))
     parts[0] = Part("Truck", body.build())
 
     key_frames, xy, yaw, dist = route_poses(route, speed, frames, fps, offset)
@@ -145,16 +147,17 @@ def excavator(rng: np.random.Generator, frames: int, fps: float) -> Asset:
         tracks.box((3.6, 0.6, 0.9), (0, y, 0.45), material="steel_dark")
         for x in (-1.8, 1.8):
             tracks.cylinder(0.45, (x, y - 0.3, 0.45), (x, y + 0.3, 0.45), segments=16, material="steel_dark")
-    tracks.box((2.6, 1.6, 0.4), (0, 0, 0.95), material="steel_dark")  # undercarriage frame
-    tracks.cylinder(1.0, (0, 0, 1.15), (0, 0, 1.3), segments=20, material="steel_dark")  # slewing ring
+    tracks.box((2.6, 1.6, 0.3), (0, 0, 0.9), material="steel_dark")  # undercarriage frame
+    tracks.cylinder(1.0, (0, 0, 1.0), (0, 0, 1.1), segments=20, material="steel_dark")  # slewing ring
 
+    # the upper body sits on the slewing ring (its origin is the ring's top); cab top 3.0 m
     upper = MeshBuilder()
-    upper.box((3.0, 2.5, 1.2), (-0.5, 0, 0.6 + 0.15), material="excavator_paint")
-    upper.box((1.0, 2.5, 0.9), (-1.9, 0, 0.75), material="excavator_paint")  # counterweight
-    upper.box((1.6, 0.95, 1.6), (0.4, 0.72, 1.35 + 0.8), material="excavator_paint")  # cab
-    upper.box((0.05, 0.8, 1.0), (1.21, 0.72, 2.3), material="glass")
-    upper.cylinder(0.08, (-1.2, -0.8, 1.35), (-1.2, -0.8, 2.3), segments=8, material="steel_dark")  # exhaust
-    body_z = 1.3  # upper body origin above the ground
+    upper.box((3.0, 2.5, 0.9), (-0.5, 0, 0.45), material="excavator_paint")
+    upper.box((1.0, 2.5, 1.1), (-1.9, 0, 0.55), material="excavator_paint")  # counterweight
+    upper.box((1.6, 0.95, 1.9), (0.4, 0.72, 0.95), material="excavator_paint")  # cab
+    upper.box((0.05, 0.8, 1.0), (1.21, 0.72, 1.3), material="glass")
+    upper.cylinder(0.08, (-1.2, -0.8, 0.9), (-1.2, -0.8, 1.9), segments=8, material="steel_dark")  # exhaust
+    body_z = 1.1  # upper body origin above the ground: the slewing ring's top
     pivot = (1.0, -0.35, 0.6)  # boom foot in the upper body's frame
     geom = {"pivot_world": (pivot[0], pivot[1], body_z + pivot[2]), "boom": rng.uniform(5.2, 5.8), "arm": rng.uniform(2.6, 3.0)}
     boom = MeshBuilder().box((geom["boom"], 0.5, 0.6), (geom["boom"] / 2, 0, 0), material="excavator_paint")
