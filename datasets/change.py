@@ -17,7 +17,7 @@ import numpy as np
 from generator.checks import check_integer
 
 from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_labels, read_point_cloud, seed_fields
-from .tasks import _Base, _keys, _kinds, _to_tensor
+from .tasks import _Base, _to_tensor, checked_keys, trajectory_kinds
 
 
 class Timeline:
@@ -71,7 +71,7 @@ class ChangePairDataset(_Base):
         self.timelines = [p if isinstance(p, Timeline) else Timeline(p) for p in paths]
         if not self.timelines:
             raise DatasetError("no timelines given")
-        kinds = _kinds(self.timelines, trajectories)
+        kinds = trajectory_kinds(self.timelines, trajectories)
         self.index: list[tuple[int, int, str, int]] = []
         sequences: list[Sequence] = []
         for s, tl in enumerate(self.timelines):
@@ -82,7 +82,7 @@ class ChangePairDataset(_Base):
                 for kind in kinds[s]:
                     sequences += [tl.sequence(k - 1, kind), tl.sequence(k, kind)]
                     self.index += [(s, k, kind, i) for i in range(len(sequences[-1]))]
-        self.keys = _keys(keys, sequences)
+        self.keys = checked_keys(keys, sequences)
 
     def __len__(self) -> int:
         return len(self.index)

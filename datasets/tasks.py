@@ -47,7 +47,7 @@ def _to_tensor(sample: dict) -> dict:
     return out
 
 
-def _kinds(scenes: list, trajectories) -> list[list[str]]:
+def trajectory_kinds(scenes: list, trajectories) -> list[list[str]]:
     """Per scene (or Timeline: anything with ``path`` and ``trajectories``), the trajectory
     kinds to use (one name or several; default: all); an unknown kind is a DatasetError."""
     if isinstance(trajectories, str):
@@ -67,7 +67,7 @@ def _sequences(scenes: list[Scene], kinds: list[list[str]]) -> list[Sequence]:
     return [scene[kind] for scene, names in zip(scenes, kinds) for kind in names]
 
 
-def _keys(keys, sequences: list[Sequence]) -> tuple[str, ...] | None:
+def checked_keys(keys, sequences: list[Sequence]) -> tuple[str, ...] | None:
     """The modality names to read (one name or several; None: every stored one), each checked
     against what every chosen sequence stores, here rather than in a DataLoader worker."""
     if keys is None:
@@ -106,9 +106,9 @@ class FrameDataset(_Base):
                  as_tensor: bool = False, keys: tuple[str, ...] | None = None, annotations: bool = False):
         super().__init__(transform, as_tensor)
         self.scenes = _scenes(paths)
-        kinds = _kinds(self.scenes, trajectories)
+        kinds = trajectory_kinds(self.scenes, trajectories)
         sequences = _sequences(self.scenes, kinds)
-        self.keys, self.annotations = _keys(keys, sequences), annotations
+        self.keys, self.annotations = checked_keys(keys, sequences), annotations
         if annotations:  # a seed made without the instance output has none: say so here
             for seq in sequences:
                 seq.check_annotations()
@@ -147,8 +147,8 @@ class ClipDataset(_Base):
         length, stride = check_integer("length", length, 1), check_integer("stride", stride, 1)
         _check_count("max_points", max_points)
         self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
-        kinds = _kinds(self.scenes, trajectories)
-        self.keys = _keys(keys, _sequences(self.scenes, kinds))
+        kinds = trajectory_kinds(self.scenes, trajectories)
+        self.keys = checked_keys(keys, _sequences(self.scenes, kinds))
         self.index: list[tuple[int, str, int]] = []
         span = (length - 1) * stride
         for s, scene in enumerate(self.scenes):
