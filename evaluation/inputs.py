@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from exporters.ply import PlyData, PlyError, read_ply
-from generator.checks import check_number
+from generator.checks import check_number, items
 from trajectories.base import ArrayFileError, load_arrays
 
 
@@ -33,9 +33,10 @@ def check_metres(name: str, value, low: float = 0.0, *, or_equal: bool = False) 
 def check_sweep(sweep) -> tuple[float, ...]:
     """The thresholds of a precision/recall sweep, each checked as :func:`check_metres` checks
     one (what the CLI's ``--sweep`` accepts); an empty sweep is allowed (no sweep figures)."""
-    if isinstance(sweep, (str, bytes)) or not hasattr(sweep, "__iter__"):
+    thresholds = items(sweep)
+    if thresholds is None:
         raise InputError(f"sweep must be a sequence of positive numbers of metres, got {sweep!r}")
-    return tuple(check_metres(f"sweep[{i}]", t) for i, t in enumerate(sweep))
+    return tuple(check_metres(f"sweep[{i}]", t) for i, t in enumerate(thresholds))
 
 
 def load_array_file(path: Path, keys: tuple[str, ...] | None = None) -> np.ndarray | dict[str, np.ndarray]:

@@ -16,6 +16,18 @@ from typing import NoReturn
 import numpy as np
 
 
+def items(value) -> tuple | None:
+    """The items of a list-like ``value`` (list, tuple, array, generator) as a tuple; None for
+    what is not one: a string or bytes (a single name, not a list of letters), a number,
+    None, a path, a 0-d array."""
+    if isinstance(value, (str, bytes)):
+        return None
+    try:
+        return tuple(value)
+    except TypeError:
+        return None
+
+
 def fail(name: str, valid: str, value) -> NoReturn:
     """Raise the one-line ValueError: '``name`` must be ``valid``, got ``value``'."""
     raise ValueError(f"{name} must be {valid}, got {value!r}")

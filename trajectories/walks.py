@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from generator.checks import check_integer, check_number
+from generator.checks import check_integer, check_number, items
 from generator.geometry.camera import translated_along_axis, turned_about_world_z
 
 from . import checks
@@ -65,7 +65,7 @@ def random_walk(checker: MotionChecker, start: np.ndarray, steps: int, rng: np.r
     """``steps`` actions drawn uniformly from ``actions`` (default: the five); returns
     steps + 1 poses (start first). Defaults are the paper's code: 3 m moves, 22.5 degree turns."""
     _check(start, steps, rng, step, angle, fps)
-    choices = () if isinstance(actions, str) or not hasattr(actions, "__iter__") else tuple(actions)
+    choices = items(actions) or ()
     if not choices or any(a not in ACTIONS for a in choices):
         raise ValueError(f"actions must be a non-empty list drawn from {', '.join(ACTIONS)}, got {actions!r}")
     poses, taken = [np.array(start, dtype=np.float64)], []

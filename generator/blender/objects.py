@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import items
 from ..geometry.parts import MeshPart
 from . import session
 from .extract import label_of
@@ -21,10 +22,7 @@ class SceneError(ValueError):
 
 def check_names(name: str, value) -> tuple[str, ...]:
     """``value`` as a tuple of object names, or a one-line error naming the argument."""
-    try:
-        names = None if isinstance(value, (str, bytes)) else tuple(value)
-    except TypeError:  # not iterable (None, a number)
-        names = None
+    names = items(value)
     if names is None or not all(isinstance(v, str) for v in names):
         raise ValueError(f"{name} must be a list of object names, got {value!r}")
     return names

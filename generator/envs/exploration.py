@@ -19,7 +19,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..checks import check_integer, check_number, check_seed
+from ..checks import check_integer, check_number, check_seed, items
 from ..render_settings import PRESETS as RENDER_PRESETS
 from ..render_settings import check_side
 from ..geometry.camera import heading_pose
@@ -366,10 +366,12 @@ def _discrete(action) -> int:
 
 
 def _sources(seeds, blend_files) -> list[tuple[str, object]]:
-    for value in (seeds, blend_files):
-        if isinstance(value, (int, np.integer, str, bytes, os.PathLike)) or not hasattr(value, "__iter__"):
+    lists = [items(value) for value in (seeds, blend_files)]
+    for value, listed in zip((seeds, blend_files), lists):
+        if listed is None:
             raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend']), "
                              f"got {value!r}")
+    seeds, blend_files = lists
     out: list[tuple[str, object]] = []
     for i, s in enumerate(seeds):
         out.append(("seed", check_seed(f"seeds[{i}]", s)))
