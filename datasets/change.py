@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from generator.checks import check_integer
+from generator.checks import check_integer, items
 
 from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_labels, read_point_cloud, seed_fields
 from .tasks import _Base, _to_tensor, checked_keys, trajectory_kinds
@@ -71,14 +71,18 @@ class ChangePairDataset(_Base):
         self.timelines = [p if isinstance(p, Timeline) else Timeline(p) for p in paths]
         if not self.timelines:
             raise DatasetError("no timelines given")
+        if pairs is not None and items(pairs) is None:
+            raise DatasetError(f"pairs must be a list of integers k (the pairs of stages k-1, k), got {pairs!r}")
         kinds = trajectory_kinds(self.timelines, trajectories)
         self.index: list[tuple[int, int, str, int]] = []
         sequences: list[Sequence] = []
         for s, tl in enumerate(self.timelines):
-            ks = range(1, tl.stages) if pairs is None else pairs
+            valid = f"an integer from 1 to {tl.stages - 1} for {tl.path} (stage k-1 to stage k)"
+            ks = range(1, tl.stages) if pairs is None else [check_integer("pair", k, 1, tl.stages - 1, valid=valid)
+                                                            for k in items(pairs)]
+            if len(set(ks)) != len(ks):
+                raise DatasetError(f"pairs lists pair {next(k for k in ks if ks.count(k) > 1)} twice; give each once")
             for k in ks:
-                k = check_integer("pair", k, 1, tl.stages - 1,
-                                  valid=f"an integer from 1 to {tl.stages - 1} for {tl.path} (stage k-1 to stage k)")
                 for kind in kinds[s]:
                     sequences += [tl.sequence(k - 1, kind), tl.sequence(k, kind)]
                     self.index += [(s, k, kind, i) for i in range(len(sequences[-1]))]

@@ -17,6 +17,7 @@ import numpy as np
 from exporters import FORMAT_VERSION, VERSION_REMEDY
 from exporters.frames import FrameReader, frame_names
 from exporters.hdf5 import H5_ERRORS, DamagedFileError, access_error, damaged, reason
+from exporters.jsonfile import read_checked_bytes
 from exporters.manifest import read_manifest, stage_count, timeline_stage
 from exporters.tracks import TrackReader
 
@@ -89,7 +90,9 @@ def read_labels(folder: Path) -> list[str]:
     if not path.is_file():
         raise DatasetError(f"{path}: missing; the seed folder is incomplete, regenerate it")
     try:
-        labels = json.loads(path.read_bytes().decode("utf-8"))
+        labels = json.loads(read_checked_bytes(path).decode("utf-8"))
+    except DamagedFileError as exc:
+        raise DatasetError(str(exc)) from None
     except (OSError, ValueError) as exc:
         raise DatasetError(str(access_error(exc, path) or f"{path}: unreadable label table ({exc.__class__.__name__}); "
                                "regenerate this seed with python -m generator")) from None

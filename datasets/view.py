@@ -25,10 +25,9 @@ import threading
 import time
 from pathlib import Path
 
-from exporters.manifest import seed_folder_containing
 from generator.cli_args import OneLineParser, int_at_least
 
-from .viewer.common import MAX_POINTS
+from .viewer.common import MAX_POINTS, quiet_rerun
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -63,21 +62,17 @@ _VIEWER_STREAMS: list = []
 
 
 def check_out(out: Path, seed: Path) -> None:
-    """Refuse an output that is a folder, lies inside the seed folder, or cannot be written."""
+    """Refuse an output that is not a .rrd name, a folder, inside the seed folder or any
+    generated seed, a file this project did not write, or where nothing can be written
+    (exporters.write_guard)."""
+    from exporters.write_guard import WriteRefused, check_output_file
+
     if out.suffix != ".rrd":
         raise ViewError(f"--out {out}: name a .rrd file")
-    if out.is_dir():
-        raise ViewError(f"--out {out}: is a folder; name a .rrd file")
     try:
-        inside = seed_folder_containing(out.parent)
-    except OSError as exc:
-        raise ViewError(f"--out {out}: cannot look at its folder ({exc.strerror}); choose another") from None
-    if inside is not None:
-        raise ViewError(f"--out {out}: lies inside the seed folder {inside}; write the recording elsewhere")
-    if not out.parent.is_dir():
-        raise ViewError(f"--out {out}: its folder does not exist; create it first")
-    if not os.access(out.parent, os.W_OK):
-        raise ViewError(f"--out {out}: cannot write in {out.parent}; choose a writable folder")
+        check_output_file(out, "--out", "rrd", inputs=(seed,))
+    except WriteRefused as exc:
+        raise ViewError(str(exc)) from None
 
 
 def partial_file(out: Path, pid: int) -> Path:
@@ -275,6 +270,7 @@ def end_process(code: int) -> None:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    quiet_rerun()
     main_thread = threading.current_thread() is threading.main_thread()  # signal handlers can only be set there
     if main_thread:
         previous = signal.signal(signal.SIGTERM, terminate)

@@ -6,8 +6,9 @@
   python -m evaluation change --gt SEED_FOLDER --stages K-1 K --pred changes.npz|changes.ply [--tau 0.1] [--kind orbit] [--json out.json]
 
 Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot, --rrd)
-never land on an input of the run, inside a seed folder or ground_truth/ folder, or on a
-folder; that is checked before any scoring starts.
+never land on an input of the run or inside an input folder, inside a generated seed folder,
+on a folder, or on an existing file this project did not write (exporters.write_guard); that
+is checked before any scoring starts.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 from generator.cli_args import OneLineParser, positive_float, resolution
@@ -75,65 +75,42 @@ def parse_args(argv=None) -> argparse.Namespace:
     return args
 
 
-OUTPUTS = ("json", "ply", "plot", "rrd")
+# output flag -> kind of file (exporters.write_guard.KINDS: the signature an existing file must carry)
+OUTPUTS = {"json": "json", "ply": "ply", "plot": "png", "rrd": "rrd"}
 
 
-def _inputs(args) -> tuple[list[Path], list[Path]]:
-    """(files, folders) this run reads: the outputs must stay clear of them."""
+def _inputs(args) -> list[Path]:
+    """The files and folders this run reads: the outputs must stay clear of them."""
     paths = [getattr(args, k, None) for k in ("gt", "pred", "pred_labels", "trajectory")]
     paths = [Path(p) for p in paths if p is not None and Path(p).exists()]
-    files = [p for p in paths if not p.is_dir()]
-    folders = [p for p in paths if p.is_dir()]
-    for p in paths:  # label tables read beside a ground-truth file
+    for p in list(paths):  # label tables read beside a ground-truth file
         base = p if p.is_dir() else p.parent
-        files += [c for c in (base / "labels.json", base.parent / "labels.json", base / "tracks.h5") if c.is_file()]
-    return files, folders
-
-
-def _real(path: Path) -> Path:
-    return Path(os.path.realpath(path))
-
-
-def _is_ground_truth_folder(folder: Path) -> bool:
-    """A seed folder written by the generator (manifest.json and ground_truth/) or a ground_truth/ folder."""
-    return folder.name == "ground_truth" or ((folder / "manifest.json").is_file() and (folder / "ground_truth").is_dir())
+        paths += [c for c in (base / "labels.json", base.parent / "labels.json", base / "tracks.h5") if c.is_file()]
+    return paths
 
 
 def check_outputs(args) -> None:
-    """Refuse, before any work, outputs that would land on an input, inside a seed or
-    ground-truth folder or an input folder, on a folder, twice, or where nothing can be written."""
+    """Refuse, before any work, outputs that would land on an input or inside an input folder,
+    inside a generated seed, on a folder or a file this project did not write, twice, or where
+    nothing can be written (exporters.write_guard)."""
+    from exporters.write_guard import WriteRefused, check_output_file
+
     from .inputs import InputError
 
-    outputs = [(f"--{k}", Path(getattr(args, k))) for k in OUTPUTS if getattr(args, k, None) is not None]
-    files, folders = _inputs(args)
-    protected_files = {_real(p) for p in files}
-    protected_folders = {_real(p) for p in folders}
+    inputs = _inputs(args)
     seen: dict[Path, str] = {}
-    for flag, path in outputs:
-        real = _real(path)
+    for key, kind in OUTPUTS.items():
+        if getattr(args, key, None) is None:
+            continue
+        flag, path = f"--{key}", Path(getattr(args, key))
+        real = Path(os.path.realpath(path))
         if real in seen:
             raise InputError(f"{flag} {path}: the same file as {seen[real]}; give each output its own name")
         seen[real] = flag
-        if path.is_dir():
-            raise InputError(f"{flag} {path}: is a folder; name a file to write")
-        if path.exists() and not path.is_file():  # a device (/dev/null), pipe or socket: never replaced
-            raise InputError(f"{flag} {path}: not a regular file (a device, pipe or socket); name a file to write")
-        if real in protected_files or (path.exists() and any(path.samefile(p) for p in files)):
-            raise InputError(f"{flag} {path}: is an input of this run; write the output elsewhere")
-        for folder in (real.parent, *real.parent.parents):
-            if folder in protected_folders or _is_ground_truth_folder(folder):
-                what = "a seed or ground-truth folder," if _is_ground_truth_folder(folder) else "an input folder"
-                raise InputError(f"{flag} {path}: lies inside {what} {folder}; outputs never go into the "
-                                 "ground truth or the inputs, write it elsewhere")
-        if not path.parent.is_dir():
-            raise InputError(f"{flag} {path}: its folder does not exist; create it first")
-        try:  # a real write test: permissions, read-only or special file systems (/proc)
-            fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".probe")
-            os.close(fd)
-            os.unlink(probe)
-        except OSError as exc:
-            raise InputError(f"{flag} {path}: cannot write in {path.parent} ({exc.strerror or exc}); "
-                             "choose a writable folder") from None
+        try:
+            check_output_file(path, flag, kind, inputs)
+        except WriteRefused as exc:
+            raise InputError(str(exc)) from None
 
 
 def main(argv=None) -> int:
@@ -153,6 +130,9 @@ def main(argv=None) -> int:
             if args.ply:
                 _write(args.ply, colour_ply, ctx, args.tau)
             if args.rrd:
+                from datasets.viewer.common import quiet_rerun
+
+                quiet_rerun()
                 from datasets.viewer.match import write_match_recording
 
                 _write(args.rrd, write_match_recording, ctx, args.tau)

@@ -23,7 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .inputs import Cloud, InputError, load_array_file, regular_file
+from trajectories.arrays import ArrayFileError, declared_arrays
+
+from .inputs import Cloud, InputError, check_cloud_rows, load_array_file, regular_file
 
 CLOUD_CLASSES = {"added": 1, "removed": 2}  # the codes of exporters.changes.STATUS
 DEFAULT_TAU = 0.1  # metres
@@ -118,12 +120,40 @@ def _check_stages(changes, seed: Path, before: int, after: int) -> None:
                          "consecutive stages K-1 K")
 
 
-def read_change_prediction(path: Path) -> dict:
-    """{"xyz", "change"} (a change cloud) or {"masks"} from an NPZ or PLY (module docstring)."""
+PREDICTION_KEYS = ("xyz", "change", "masks")
+
+
+def prediction_kind(path: Path) -> str:
+    """"masks" or "cloud": what the prediction file ``path`` holds, from its headers only; an
+    NPZ holding both is refused (which would be scored?)."""
     path = regular_file(path, "--pred")
-    data = _read_ply_change(path) if path.suffix.lower() == ".ply" else load_array_file(path, ("xyz", "change", "masks"))
-    if not isinstance(data, dict):
+    if path.suffix.lower() == ".ply":
+        return "cloud"
+    try:
+        declared = declared_arrays(path, PREDICTION_KEYS)
+    except ArrayFileError as exc:
+        raise InputError(f"--pred {exc}") from None
+    if not isinstance(declared, dict):
         raise InputError(f"--pred {path}: holds one array; give an NPZ with masks (T, H, W), or xyz and change")
+    if "masks" in declared and ("xyz" in declared or "change" in declared):
+        raise InputError(f"--pred {path}: holds both masks and a change cloud (xyz, change); give one of them")
+    if "masks" in declared and declared["masks"].dtype.kind not in "biuf":
+        raise InputError(f"--pred {path}: masks must be booleans (or 0/1), got dtype {declared['masks'].dtype}")
+    return "masks" if "masks" in declared else "cloud"
+
+
+def read_change_prediction(path: Path, masks_shape: tuple[int, ...] | None = None) -> dict:
+    """{"xyz", "change"} (a change cloud) or {"masks"} from an NPZ or PLY (module docstring).
+    ``masks_shape``: the ground truth's (T, H, W); masks declaring another shape are refused
+    before they are read (a cloud is held to evaluation.inputs.MAX_CLOUD_POINTS)."""
+    path = regular_file(path, "--pred")
+    if path.suffix.lower() == ".ply":
+        data = _read_ply_change(path)
+    elif prediction_kind(path) == "masks":
+        data = load_array_file(path, ("masks",), check=lambda d: _check_masks_shape(d, masks_shape, path),
+                               expansion=masks_shape is None)
+    else:
+        data = load_array_file(path, ("xyz", "change"), check=lambda d: check_cloud_rows(d, path))
     if "masks" in data:
         return {"masks": _checked_masks(np.asarray(data["masks"]), path)}
     if "xyz" not in data or "change" not in data:
@@ -136,6 +166,12 @@ def read_change_prediction(path: Path) -> dict:
     if not np.isin(change, list(CLOUD_CLASSES.values())).all():
         raise InputError(f"--pred {path}: change values must be 1 (added) or 2 (removed)")
     return {"xyz": xyz, "change": change.astype(np.int64)}
+
+
+def _check_masks_shape(declared: dict, shape: tuple[int, ...] | None, path: Path) -> None:
+    if shape is not None and declared["masks"].shape != tuple(shape):
+        raise InputError(f"--pred {path}: masks are {declared['masks'].shape}, the ground truth's {tuple(shape)} "
+                         "(T, H, W)")
 
 
 def _read_ply_change(path: Path) -> dict:
@@ -169,9 +205,8 @@ def score_change(gt: str | Path, before: int, after: int, pred: str | Path, tau:
                  kind: str | None = None) -> dict:
     """Score ``pred`` against the change from stage ``before`` to ``after`` of the seed folder ``gt``."""
     seed, pred = Path(gt), Path(pred)
-    prediction = read_change_prediction(pred)
     common = {"gt": str(seed), "pred": str(pred), "stages": [before, after]}
-    if "masks" in prediction:
+    if prediction_kind(pred) == "masks":
         changes = _changes(seed)
         _check_stages(changes, seed, before, after)
         masks = changes.pair(before, after).masks
@@ -181,10 +216,10 @@ def score_change(gt: str | Path, before: int, after: int, pred: str | Path, tau:
             raise InputError(f"--kind {kind or '(none)'}: name the trajectory the masks are for, one of "
                              f"{', '.join(sorted(masks))}")
         truth = masks[kind]
-        if prediction["masks"].shape != truth.shape:
-            raise InputError(f"--pred {pred}: masks are {prediction['masks'].shape}, the ground truth's {truth.shape} (T, H, W)")
+        prediction = read_change_prediction(pred, truth.shape)
         return {"task": "change-masks", "parameters": common | {"kind": kind, **changes.parameters},
                 "scores": score_change_masks(truth, prediction["masks"])}
+    prediction = read_change_prediction(pred)
     xyz, code, changes = gt_change_cloud(seed, before, after)
     return {"task": "change-cloud", "parameters": common | {"tau_m": tau, "strict": True, **changes.parameters},
             "scores": score_change_cloud(xyz, code, prediction["xyz"], prediction["change"], tau)}

@@ -10,9 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
+from exporters.hdf5 import DamagedFileError
+from exporters.jsonfile import read_checked_bytes
 from exporters.ply import PlyData, PlyError, read_ply
 from generator.checks import check_number, items
-from trajectories.base import ArrayFileError, load_arrays
+from trajectories.arrays import ArrayFileError, load_arrays
 
 
 class InputError(ValueError):
@@ -39,13 +41,30 @@ def check_sweep(sweep) -> tuple[float, ...]:
     return tuple(check_metres(f"sweep[{i}]", t) for i, t in enumerate(thresholds))
 
 
-def load_array_file(path: Path, keys: tuple[str, ...] | None = None) -> np.ndarray | dict[str, np.ndarray]:
-    """:func:`trajectories.base.load_arrays` (an .npy's array or an .npz's members, read now),
-    any decode failure an :class:`InputError` naming the file."""
+def load_array_file(path: Path, keys: tuple[str, ...] | None = None, check=None,
+                    expansion: bool = True) -> np.ndarray | dict[str, np.ndarray]:
+    """:func:`trajectories.arrays.load_arrays` (an .npy's array or an .npz's members, read now
+    once their declared shapes pass ``check`` and the expansion rule), any decode failure or
+    refusal an :class:`InputError` naming the file."""
     try:
-        return load_arrays(path, keys)
+        return load_arrays(path, keys, check, expansion)
     except ArrayFileError as exc:
-        raise InputError(f"{exc}; write it with numpy.save or numpy.savez") from None
+        hint = "" if "numpy" in str(exc) or "not read" in str(exc) else "; write it with numpy.save or numpy.savez"
+        raise InputError(f"{exc}{hint}") from None
+
+
+MAX_CLOUD_POINTS = 30_000_000  # points (rows) a cloud or label file may declare; the generator's clouds stop at 25 M
+MAX_TEXT_BYTES = 1 << 30       # a text cloud's size (about 30 M rows of x y z label)
+
+
+def check_cloud_rows(declared, path: Path) -> None:
+    """Refuse, before reading, arrays declaring more than MAX_CLOUD_POINTS rows (``declared``:
+    :func:`trajectories.arrays.declared_arrays` of an .npy or .npz)."""
+    for name, d in (declared.items() if isinstance(declared, dict) else [("", declared)]):
+        if d.rows > MAX_CLOUD_POINTS:
+            what = f"member {name!r}" if name else "its array"
+            raise InputError(f"{path}: {what} declares {d.rows:,} rows ({d.dtype} {d.shape}); the limit is "
+                             f"{MAX_CLOUD_POINTS:,} points: voxel-downsample the cloud first")
 
 
 MAX_COORDINATE = 1e9  # metres: beyond it a coordinate is refused (squared distances must stay finite)
@@ -118,6 +137,9 @@ CLOUD_SUFFIXES = (".ply", ".npy", ".npz", ".txt", ".xyz", ".csv", ".pts")
 
 
 def _text_table(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    if path.stat().st_size > MAX_TEXT_BYTES:
+        raise InputError(f"{path}: a text cloud of {path.stat().st_size:,} bytes, over the limit of "
+                         f"{MAX_TEXT_BYTES >> 20:,} MiB; give large clouds as NPY or binary PLY")
     delimiter = "," if path.suffix == ".csv" else None
     try:
         with open(path) as f:
@@ -155,7 +177,7 @@ Columns = tuple[np.ndarray, np.ndarray | None, list[str] | None, np.ndarray | No
 
 def _read_ply_cloud(path: Path) -> Columns:
     try:
-        d = read_ply(path)
+        d = read_ply(path, max_vertices=MAX_CLOUD_POINTS)
     except PlyError as exc:
         raise InputError(str(exc)) from None
     return _ply_columns(d, path)
@@ -192,7 +214,7 @@ def read_cloud(path: str | Path, labels_path: str | Path | None = None, label_na
         elif suffix == ".npy":
             points, labels = _split_columns(_npy(path), path)
         elif suffix == ".npz":
-            points, labels = _npz_columns(load_array_file(path), path)
+            points, labels = _npz_columns(load_array_file(path, check=lambda d: check_cloud_rows(d, path)), path)
         elif suffix in CLOUD_SUFFIXES:
             points, labels = _text_table(path)
         else:
@@ -259,7 +281,8 @@ def _check_file_table(path: Path, file_names: list[str] | None, label_names: lis
 
 
 def _npy(path: Path) -> np.ndarray:
-    array = load_array_file(path, keys=())  # an NPZ's members are not read: it is refused
+    array = load_array_file(path, keys=(), check=lambda d: check_cloud_rows(d, path))  # an NPZ's members are
+    # not read: it is refused
     if not isinstance(array, np.ndarray):
         raise InputError(f"{path}: an NPZ archive under an .npy name; rename it .npz")
     return array
@@ -328,7 +351,9 @@ def check_label_range(cloud: Cloud, names: list[str], role: str) -> None:
 def read_label_table(path: Path) -> list[str]:
     """labels.json (a JSON list of class names)."""
     try:
-        names = json.loads(path.read_text())
+        names = json.loads(read_checked_bytes(path))
+    except DamagedFileError as exc:
+        raise InputError(str(exc)) from None
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: unreadable label table ({exc.__class__.__name__})") from None
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
+from exporters.write_guard import png_info, signed_json
+
 
 def reconstruction_table(results: dict) -> str:
     m, p = results["metrics"], results["parameters"]
@@ -114,7 +116,8 @@ def write_atomic(path: str | Path, data: bytes) -> Path:
 
 
 def write_json(path: str | Path, results: dict) -> Path:
-    return write_atomic(path, json.dumps(results, indent=1).encode())
+    """``results`` as JSON, signed first (exporters.write_guard: a later run may replace it)."""
+    return write_atomic(path, json.dumps(signed_json(results), indent=1).encode())
 
 
 def coverage_plot(path: str | Path, curves: dict[str, np.ndarray], title: str = "coverage") -> Path:
@@ -146,5 +149,5 @@ def coverage_plot(path: str | Path, curves: dict[str, np.ndarray], title: str = 
             d.ellipse([xs[0] - 2, ys[0] - 2, xs[0] + 2, ys[0] + 2], fill=colour)
         d.text((x1 - 200, y1 + 8 + 14 * j), name, fill=colour)
     buffer = io.BytesIO()
-    img.save(buffer, format="PNG")
+    img.save(buffer, format="PNG", pnginfo=png_info())
     return write_atomic(path, buffer.getvalue())

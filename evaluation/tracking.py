@@ -50,6 +50,17 @@ def read_tracks_gt(path: Path) -> tuple[dict, tuple[int, int]]:
     return truth, size
 
 
+def _check_declared(declared, queries: int, frames: int, path) -> None:
+    """Refuse, before reading, tracks or occluded arrays of other shapes than the ground truth's."""
+    if not isinstance(declared, dict):
+        return  # an .npy: refused by the caller once read (it is no larger than the file)
+    want = {"tracks": (queries, frames, 2), "occluded": (queries, frames)}
+    for name, shape in want.items():
+        if name in declared and declared[name].shape != shape:
+            raise InputError(f"{path}: {name} declares {declared[name].shape}; expected {shape} for this ground "
+                             f"truth's {queries} queries and {frames} frames")
+
+
 def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.ndarray, str]:
     """Predicted ``tracks`` (Q, T, 2) float64 and ``occluded`` (Q, T) bool from an NPZ file
     or a dict, checked against the ground truth's Q queries and T frames. Points predicted
@@ -62,7 +73,8 @@ def read_tracks_pred(pred, queries: int, frames: int) -> tuple[np.ndarray, np.nd
         if path.suffix.lower() != ".npz":
             raise InputError(f"{path}: predicted tracks must be an NPZ with arrays 'tracks' (Q, T, 2) and "
                              "'occluded' (Q, T) (numpy.savez); got a " + (path.suffix or "suffix-less") + " file")
-        pred = load_array_file(path, ("tracks", "occluded"))
+        pred = load_array_file(path, ("tracks", "occluded"), expansion=False,
+                               check=lambda declared: _check_declared(declared, queries, frames, path))
         if not isinstance(pred, dict):
             raise InputError(f"{path}: holds one array (an .npy under an .npz name); write 'tracks' and 'occluded' "
                              "with numpy.savez")

@@ -9,7 +9,9 @@ display sRGB), ``label_NNNNNN.png`` and ``instance_NNNNNN.png`` (16-bit, id + 1,
 
 from __future__ import annotations
 
+import io
 import json
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +19,7 @@ from PIL import Image
 
 from .exr import read_frame_exr, write_frame
 from .hdf5 import REMEDY, DamagedFileError, access_error
+from .jsonfile import read_checked_bytes
 from .modalities import MODALITIES, Modality, produced_by
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
@@ -48,10 +51,36 @@ def write_png(path: Path, array: np.ndarray, kind: str, name: str) -> None:
     Image.fromarray(img).save(path, compress_level=1)
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def checked_png_bytes(path: Path) -> bytes:
+    """The bytes of the PNG ``path`` once every chunk's CRC-32 matches its contents and the
+    file ends with its IEND chunk (Pillow checks neither for the image data, so a flipped
+    bit would decode as other pixels); a mismatch raises ValueError naming the chunk."""
+    data = Path(path).read_bytes()
+    if not data.startswith(PNG_SIGNATURE):
+        raise ValueError(f"{path}: not a PNG file")
+    pos, kind = len(PNG_SIGNATURE), b""
+    while kind != b"IEND":
+        if pos + 12 > len(data):
+            raise ValueError(f"{path}: truncated PNG (no IEND chunk)")
+        length = int.from_bytes(data[pos:pos + 4], "big")
+        end = pos + 8 + length
+        kind = data[pos + 4:pos + 8]
+        if end + 4 > len(data) or zlib.crc32(data[pos + 4:end]) != int.from_bytes(data[end:end + 4], "big"):
+            raise ValueError(f"{path}: damaged PNG (chunk {kind.decode('latin-1')!r} at byte {pos} fails its CRC)")
+        pos = end + 4
+    if pos != len(data):
+        raise ValueError(f"{path}: damaged PNG ({len(data) - pos} bytes after its IEND chunk)")
+    return data
+
+
 def read_png(path: Path, kind: str) -> np.ndarray:
-    """Inverse of :func:`write_png`: float32 colour in [0, 1], or int32 ids (-1 = none). A PNG
-    of another kind (not 8-bit RGB for colour, not 16-bit grey for ids) raises ValueError."""
-    with Image.open(path) as im:
+    """Inverse of :func:`write_png`: float32 colour in [0, 1], or int32 ids (-1 = none), read
+    once its CRCs check (:func:`checked_png_bytes`). A PNG of another kind (not 8-bit RGB for
+    colour, not 16-bit grey for ids) or a damaged one raises ValueError."""
+    with Image.open(io.BytesIO(checked_png_bytes(path))) as im:
         mode = im.mode
         data = np.asarray(im)
     if kind == "rgb8":
@@ -128,11 +157,13 @@ class FrameReader:
         self.folder = Path(folder)
         path = self.folder / INDEX_FILE
         try:
-            doc = json.loads(path.read_text())
+            doc = json.loads(read_checked_bytes(path))
             self.modalities: tuple[str, ...] = tuple(doc["modalities"])
             self.frames, self.width, self.height = int(doc["frames"]), int(doc["width"]), int(doc["height"])
         except FileNotFoundError:
             raise DamagedFileError(f"{path}: missing; {REMEDY}") from None
+        except DamagedFileError:
+            raise
         except (OSError, ValueError, KeyError, TypeError) as exc:
             damage = DamagedFileError(f"{path}: damaged file ({exc.__class__.__name__}); {REMEDY}")
             raise access_error(exc, path) or damage from None

@@ -8,6 +8,7 @@ raises :class:`ManifestError`; :func:`read_manifest` returns None instead) and o
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -19,6 +20,7 @@ MANIFEST = "manifest.json"
 PARTIAL_MARKER = ".buildee-partial"  # written first into a folder being generated; never listed
 REQUIRED = ("format_version", "seed", "config", "files")
 MAX_MANIFEST_BYTES = 256 << 20  # a manifest of 10,000 frames x 3 kinds is about 20 MB
+CHECKSUM = "checksum"  # sha256 of the rest of the manifest (_checksum); manifests before it have none
 
 
 class ManifestError(ValueError):
@@ -72,12 +74,18 @@ def write_manifest(folder: str | Path, info: dict) -> Path:
              for rel, st, digest in zip(rels, stats, sha256_many(paths))}
     path = folder / MANIFEST
     tmp = folder / f".{MANIFEST}.tmp"
+    doc = info | {"files": files}
     with open(tmp, "w") as f:
-        f.write(json.dumps(info | {"files": files}, indent=1, sort_keys=True))
+        f.write(json.dumps(doc | {CHECKSUM: _checksum(doc)}, indent=1, sort_keys=True))
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
     return path
+
+
+def _checksum(doc: dict) -> str:
+    """sha256 of ``doc`` (a manifest without its checksum) as compact JSON with sorted keys."""
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def _schema_problem(manifest) -> str | None:
@@ -117,6 +125,8 @@ def load_manifest(folder: str | Path) -> dict:
     problem = _schema_problem(manifest)
     if problem:
         raise ManifestError(f"{path}: {problem}")
+    if CHECKSUM in manifest and manifest[CHECKSUM] != _checksum({k: v for k, v in manifest.items() if k != CHECKSUM}):
+        raise ManifestError(f"{path}: damaged (its contents differ from its own checksum)")
     return manifest
 
 
@@ -154,6 +164,32 @@ def seed_folder_containing(path: str | Path) -> Path | None:
         if (folder / MANIFEST).is_file() or (folder / PARTIAL_MARKER).is_file():
             return folder
     return None
+
+
+@functools.lru_cache(maxsize=16)
+def _listed_files(path: str, stamp: tuple) -> dict:
+    """The file table of the manifest at ``path`` (cached while its ``stamp``: inode, size and
+    modification time, is unchanged)."""
+    return load_manifest(Path(path).parent)["files"]
+
+
+def listed_sha256(path: str | Path) -> str | None:
+    """The sha256 that the manifest of the complete seed holding ``path`` lists for it; None
+    when no complete seed holds it (a file elsewhere, or in a folder still being generated).
+    A seed whose manifest is damaged or does not list the file raises ManifestError. Readers
+    compare the bytes they read with it before trusting a file that carries no check of its
+    own (JSON); the manifest is read once per process while it is unchanged."""
+    path = Path(os.path.realpath(path))
+    seed = seed_folder_containing(path.parent)
+    if seed is None or not (seed / MANIFEST).is_file():
+        return None
+    st = (seed / MANIFEST).stat()
+    files = _listed_files(str(seed / MANIFEST), (st.st_ino, st.st_size, st.st_mtime_ns))
+    rel = path.relative_to(seed).as_posix()
+    if rel not in files:
+        raise ManifestError(f"{path}: not listed in the manifest of {seed}; the seed folder was changed, "
+                            "check it with python -m generator verify")
+    return files[rel]["sha256"]
 
 
 def check_files(folder: str | Path, manifest: dict, hashes: bool | None = True) -> list[str]:

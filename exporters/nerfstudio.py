@@ -12,12 +12,15 @@ frame can see; 0 means no surface (docs/format.md).
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
+from .frames import checked_png_bytes
+from .jsonfile import read_checked_bytes
 from .sinks import FrameRecord, TrajectoryContext, register_sink
 
 OPENCV_TO_OPENGL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -71,13 +74,15 @@ def read_depth_png(path: str | Path, unit: float | None = None) -> np.ndarray:
     path = Path(path)
     if unit is None:
         try:
-            unit = float(json.loads((path.parent / TRANSFORMS).read_text())["integer_depth_scale"])
+            unit = float(json.loads(read_checked_bytes(path.parent / TRANSFORMS))["integer_depth_scale"])
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ValueError(f"{path}: no depth unit ({path.parent / TRANSFORMS}: {exc.__class__.__name__}); "
                              "pass unit= (metres per step)") from None
     try:
-        with Image.open(path) as im:
+        with Image.open(io.BytesIO(checked_png_bytes(path))) as im:
             data = np.asarray(im)
+    except ValueError as exc:
+        raise ValueError(f"{exc}; regenerate the seed") from None
     except OSError as exc:
         raise ValueError(f"{path}: unreadable PNG ({exc}); regenerate the seed") from None
     if data.ndim != 2 or data.dtype != np.uint16:

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .write_guard import PLY_SIGNATURE
+
 _TYPES = {  # PLY type name -> numpy type code (without byte order)
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
     "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
@@ -55,13 +57,14 @@ def write_ply(path: str | Path, vertex: dict[str, np.ndarray], faces: np.ndarray
               face: dict[str, np.ndarray] | None = None, comments: list[str] | tuple[str, ...] = ()) -> Path:
     """Write a binary little-endian PLY. ``vertex`` maps property names to (N,) arrays (their
     dtypes are kept; put x, y, z first); ``faces`` (F, 3) vertex indices; ``face`` extra
-    (F,) face properties."""
+    (F,) face properties. The first comment is the project's signature (exporters.write_guard)."""
     path = Path(path)
     names = list(vertex)
     n = len(vertex[names[0]]) if names else 0
     if any(len(np.asarray(v)) != n for v in vertex.values()):
         raise ValueError("all vertex properties must have the same length")
-    header = ["ply", "format binary_little_endian 1.0", *(f"comment {c}" for c in comments), f"element vertex {n}"]
+    header = ["ply", "format binary_little_endian 1.0", f"comment {PLY_SIGNATURE}", *(f"comment {c}" for c in comments),
+              f"element vertex {n}"]
     header += [f"property {_type_name(vertex[k])} {k}" for k in names]
     vdtype = np.dtype([(k, "<" + np.dtype(_TYPES[_type_name(vertex[k])]).str[1:]) for k in names])
     vrec = np.empty(n, dtype=vdtype)
@@ -160,20 +163,30 @@ def read_ply_comments(path: str | Path) -> list[str]:
         return _parse_header(f, path)[2]
 
 
-def read_ply(path: str | Path) -> PlyData:
+def read_ply(path: str | Path, max_vertices: int | None = None) -> PlyData:
     """Read a PLY point cloud or triangle mesh (ASCII or binary). Polygons with more than
-    three corners are split into triangle fans; face properties repeat for each triangle."""
+    three corners are split into triangle fans; face properties repeat for each triangle.
+    The element counts the header declares must describe the whole file: a binary body of
+    another length than they imply (checked before it is read, when every row has a fixed
+    size) or rows left over after the last element are refused, as is a header declaring
+    more than ``max_vertices`` vertices."""
     path = Path(path)
     if not path.is_file():
         raise PlyError(f"{path}: no such file")
     with open(path, "rb") as f:
         fmt, elements, comments = _parse_header(f, path)
+        _check_declared(elements, fmt, path.stat().st_size - f.tell(), max_vertices, path)
         body = f.read()
     data: dict[str, dict[str, np.ndarray]] = {}
     if fmt == "ascii":
-        _read_ascii(body, elements, data, path)
+        end, total = _read_ascii(body, elements, data, path)
+        unit = "rows"
     else:
-        _read_binary(body, elements, data, "<" if fmt == "binary_little_endian" else ">", path)
+        end = _read_binary(body, elements, data, "<" if fmt == "binary_little_endian" else ">", path)
+        total, unit = len(body), "bytes"
+    if end != total:
+        raise PlyError(f"{path}: {total - end} {unit} after the last element the header declares; the header's "
+                       "element counts do not match the file: fix them or rewrite the file")
     if "vertex" not in data:
         raise PlyError(f"{path}: no vertex element")
     vertex = data["vertex"]
@@ -193,6 +206,22 @@ def read_ply(path: str | Path) -> PlyData:
     return PlyData(vertex, faces, face, comments)
 
 
+def _check_declared(elements: list[_Element], fmt: str, body_bytes: int, max_vertices: int | None, path: Path) -> None:
+    """Refuse, before the body is read, a vertex count over ``max_vertices`` and a binary body
+    whose length differs from what fixed-size rows of the declared counts take."""
+    vertices = next((e.count for e in elements if e.name == "vertex"), 0)
+    if max_vertices is not None and vertices > max_vertices:
+        raise PlyError(f"{path}: declares {vertices:,} vertices, over the limit of {max_vertices:,}; "
+                       "voxel-downsample the cloud first")
+    if fmt == "ascii" or any(c is not None for e in elements for _, _, c in e.props):
+        return  # ASCII rows and list properties have no fixed size: checked after reading
+    need = sum(e.count * sum(np.dtype(code).itemsize for _, code, _ in e.props) for e in elements)
+    if need != body_bytes:
+        what = "truncated PLY data" if need > body_bytes else "more data than its header declares"
+        raise PlyError(f"{path}: {what}: the header's element counts need {need:,} bytes, the file holds "
+                       f"{body_bytes:,} after its header; fix the counts or rewrite the file")
+
+
 def _triangulate(lists, path: Path) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(lists, np.ndarray) and lists.ndim == 2:
         if lists.shape[1] < 3:
@@ -209,7 +238,8 @@ def _triangulate(lists, path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(tris, dtype=np.int64).reshape(-1, 3), np.asarray(repeat, dtype=np.int64)
 
 
-def _read_binary(body: bytes, elements: list[_Element], data: dict, order: str, path: Path) -> None:
+def _read_binary(body: bytes, elements: list[_Element], data: dict, order: str, path: Path) -> int:
+    """Read ``elements`` from ``body`` into ``data``; returns the bytes they took."""
     pos = 0
     for el in elements:
         lists = [(name, count_code) for name, _, count_code in el.props if count_code is not None]
@@ -242,6 +272,7 @@ def _read_binary(body: bytes, elements: list[_Element], data: dict, order: str, 
         rec = np.frombuffer(body, dtype=dtype, count=el.count, offset=pos)
         data[el.name] = {n: np.array(rec[n]).astype(rec[n].dtype.newbyteorder("=")) for n, _, _ in el.props}
         pos = end
+    return pos
 
 
 def _read_binary_lists(body: bytes, el: _Element, data: dict, order: str, pos: int, path: Path) -> int:
@@ -265,7 +296,8 @@ def _read_binary_lists(body: bytes, el: _Element, data: dict, order: str, pos: i
     return pos
 
 
-def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -> None:
+def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -> tuple[int, int]:
+    """Read ``elements`` from ``body`` into ``data``; returns (rows they took, non-empty rows there are)."""
     lines = body.decode("ascii", errors="replace").splitlines()
     lines = [ln for ln in lines if ln.strip()]
     pos = 0
@@ -300,6 +332,7 @@ def _read_ascii(body: bytes, elements: list[_Element], data: dict, path: Path) -
             if isinstance(exc, PlyError):
                 raise
             raise PlyError(f"{path}: malformed ASCII PLY row in element {el.name!r}") from exc
+    return pos, len(lines)
 
 
 def _ascii_values(values: np.ndarray, code: str, name: str, element: str, path: Path) -> np.ndarray:

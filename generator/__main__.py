@@ -166,6 +166,7 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"error: cannot write to output folder {args.out}: {exc.strerror}", file=sys.stderr)
         return 2
+    from .batch import folders
     from .batch.executors import ExecutorError, make_executor
     from .batch.runner import INTERRUPTED, SIGNALS, Options, exit_code, interrupt, run_seeds
 
@@ -207,8 +208,10 @@ def main(argv=None) -> int:
         print(f"{r.seed:>8}  {r.status:<8} {s.get('frames', '-'):>6} {s.get('points', 0):>10,} "
               f"{s.get('visible_tracks', 0):>15,} {r.seconds:>6.0f}s" + (f"  {r.message}" if r.message else ""))
     failed = [r for r in results if r.status == "failed"]
+    kept = [r.seed for r in failed if folders.partial_folder(args.out, r.seed).is_dir()]
     if failed:
-        print(f"{len(failed)} seed(s) failed; their partial output is in {args.out}/.seed_*.partial", file=sys.stderr)
+        where = f"; their partial output is in {args.out}/.seed_*.partial" if kept else ""
+        print(f"{len(failed)} seed(s) failed{where}", file=sys.stderr)
     return exit_code(results)
 
 

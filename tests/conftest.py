@@ -76,3 +76,13 @@ def plane_blend(tmp_path_factory):
 def seed_folder(finished):
     """The seed folder of :func:`finished` (seed 4)."""
     return finished[0] / "seed_000004"
+
+
+@pytest.fixture(scope="session")
+def timeline_seed_folder(tmp_path_factory):
+    """A real timeline seed of 2 stages (python -m generator --phases 2, seed 1, orbit only),
+    shared read-only by the tests of the readers and the write guard."""
+    out = tmp_path_factory.mktemp("timeline")
+    r = run_generator(out, "--seeds", "1", "--phases", "2", "--trajectory", "orbit")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return out / "seed_000001"

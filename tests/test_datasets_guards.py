@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_generator
+from conftest import ROOT
 
 from datasets import DatasetError, Scene
 from datasets.change import ChangePairDataset, Timeline
@@ -20,12 +20,9 @@ from exporters.modalities import MODALITIES
 
 
 @pytest.fixture(scope="module")
-def timeline(tmp_path_factory):
-    """A real timeline seed of 2 stages (python -m generator --phases 2), orbit only."""
-    out = tmp_path_factory.mktemp("timeline")
-    r = run_generator(out, "--seeds", "1", "--phases", "2", "--trajectory", "orbit")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return out / "seed_000001"
+def timeline(timeline_seed_folder):
+    """A real timeline seed of 2 stages (python -m generator --phases 2), orbit only (conftest)."""
+    return timeline_seed_folder
 
 
 def test_a_stage_is_indexed_like_python(timeline):
@@ -44,14 +41,15 @@ def test_a_damaged_or_missing_label_table_is_one_line(timeline, tmp_path):
     shutil.copytree(timeline, copy)
     labels = copy / "phase_0" / "labels.json"
     labels.write_text('["ground", "wall"')  # cut short
-    with pytest.raises(DatasetError, match=rf"^{re.escape(str(labels))}: unreadable label table \(JSONDecodeError\)"):
+    damaged = rf"^{re.escape(str(labels))}: damaged file \(its sha256 differs from the seed's manifest\)"
+    with pytest.raises(DatasetError, match=damaged):
         Timeline(copy)
     r = subprocess.run([sys.executable, "-m", "datasets.view", str(copy / "phase_1"), "--out", str(tmp_path / "x.rrd")],
                        capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
-    assert f"error: {labels}: unreadable label table" in r.stderr and not (tmp_path / "x.rrd").exists()
-    labels.write_text(json.dumps({"ground": 0}))
-    with pytest.raises(DatasetError, match="not a JSON list of class names"):
+    assert f"error: {labels}: damaged file" in r.stderr and not (tmp_path / "x.rrd").exists()
+    labels.write_text(json.dumps({"ground": 0}))  # valid JSON, not a label table: its bytes are not the manifest's
+    with pytest.raises(DatasetError, match=damaged):
         Timeline(copy)
     labels.unlink()
     with pytest.raises(DatasetError, match=rf"^{re.escape(str(labels))}: missing; the seed folder is incomplete"):

@@ -70,9 +70,9 @@ def test_outputs_never_land_on_inputs_or_in_the_ground_truth(seed_folder, perfec
     before, before_tmp = tree_state(seed_folder), set(os.listdir(tmp_path))
     rec = ["reconstruction", "--gt", seed_folder, "--pred", pred]
     cases = [
-        (rec + ["--ply", seed_folder / "ground_truth" / "points.ply"], "ground-truth folder"),  # the case
-        (rec + ["--json", seed_folder / "scores.json"], "seed or ground-truth folder"),
-        (rec + ["--ply", link], "ground-truth folder"),  # a symbolic link into the ground truth
+        (rec + ["--ply", seed_folder / "ground_truth" / "points.ply"], "generated seed folder"),  # the case
+        (rec + ["--json", seed_folder / "scores.json"], "generated seed folder"),
+        (rec + ["--ply", link], "not a regular file"),  # a symbolic link (here into the ground truth)
         (rec + ["--json", pred], "is an input"),
         (["reconstruction", "--gt", gt_file, "--pred", pred, "--ply", gt_file], "is an input"),
         (rec + ["--json", tmp_path / "a.out", "--ply", tmp_path / "a.out"], "the same file as"),
@@ -81,7 +81,7 @@ def test_outputs_never_land_on_inputs_or_in_the_ground_truth(seed_folder, perfec
         (rec + ["--json", "/dev/null"], "not a regular file"),  # as root, a rename would replace the device
         (rec + ["--json", tmp_path / "missing" / "r.json"], "does not exist"),
         (["coverage", "--gt", seed_folder, "--trajectory", seed_folder / "orbit" / "sparse" / "0", "--plot",
-          seed_folder / "orbit" / "sparse" / "0" / "c.png"], "outputs never go into"),
+          seed_folder / "orbit" / "sparse" / "0" / "c.png"], "generated seed folder"),
         (["tracks", "--gt", seed_folder / "orbit", "--pred", perfect_tracks, "--json",
           seed_folder / "orbit" / "tracks.h5"], "--json"),
     ]

@@ -143,7 +143,7 @@ def test_not_a_seed_folder_is_one_line_and_exit_2(tmp_path):
 
 @pytest.mark.parametrize("args, says", [
     (["--trajectory", "zigzag"], "zigzag"),
-    (["--out", "{seed}/inside.rrd"], "inside the seed folder"),
+    (["--out", "{seed}/inside.rrd"], "inside the generated seed folder"),
     (["--out", "{tmp}/missing/x.rrd"], "does not exist"),
     (["--max-points", "0"], "--max-points"),
     (["--spawn"], "no display"),

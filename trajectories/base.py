@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import json
-import zipfile
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
+from .arrays import ArrayFileError, Declared, load_arrays
+
 FORMAT = "buildee-trajectory-1"
+MAX_POSES = 1_000_000  # poses a trajectory file may declare (128 MB of float64 matrices)
+MAX_HEADER_BYTES = 16 << 20
 
 
 class MotionChecker(Protocol):
@@ -99,7 +101,7 @@ class Trajectory:
         need = ("poses", "timestamps", "actions", "header")
         what = f"a .npz with arrays {', '.join(need)}, as Trajectory.save writes"
         try:
-            z = load_arrays(path, need)
+            z = load_arrays(path, need, check=lambda declared: _check_rows(declared, path))
         except ArrayFileError as exc:
             raise TrajectoryError(f"not a trajectory file: {exc}; give {what}") from None
         if not isinstance(z, dict):  # a .npy array
@@ -128,35 +130,13 @@ class Trajectory:
         return cls(poses, times, header["kind"], [str(a) for a in actions], header.get("params", {}))
 
 
-# how numpy, zipfile and zlib fail on a damaged .npy/.npz: an empty file raises EOFError, a
-# truncated archive zipfile.BadZipFile, a damaged member zlib.error or BadZipFile (CRC), an
-# encrypted member or an unknown compression RuntimeError (NotImplementedError), a bad header
-# or pickled data ValueError
-ARRAY_FILE_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, RuntimeError)
-
-
-class ArrayFileError(ValueError):
-    """An .npy/.npz file that numpy cannot decode (one line: the file and why)."""
-
-
-def load_arrays(path: str | Path, keys: tuple[str, ...] | None = None) -> np.ndarray | dict[str, np.ndarray]:
-    """The array of an .npy file, or {name: array} of an .npz's members (only those named in
-    ``keys`` when given), all read now (no pickles), so that any decode failure, whichever
-    library raises it, is one :class:`ArrayFileError` naming the file. The one reader of the
-    NPY/NPZ files a user gives (trajectories, and every input of ``python -m evaluation``)."""
-    try:
-        loaded = np.load(path, allow_pickle=False)
-        if not isinstance(loaded, np.lib.npyio.NpzFile):
-            return loaded
-        with loaded as z:
-            arrays = {k: z[k] for k in z.files if keys is None or k in keys}
-    except ARRAY_FILE_ERRORS as exc:
-        why = str(exc).splitlines()[0][:200] if str(exc) else ""
-        raise ArrayFileError(f"{path}: not a readable NPY/NPZ file ({exc.__class__.__name__}: {why})") from None
-    for k, v in arrays.items():
-        if not isinstance(v, np.ndarray):  # a member not written by numpy.save: numpy returns its bytes
-            raise ArrayFileError(f"{path}: member {k!r} is not a NumPy array (write the file with numpy.savez)")
-    return arrays
+def _check_rows(declared: Declared | dict[str, Declared], path: Path) -> None:
+    """Refuse, before reading, a trajectory file declaring more than MAX_POSES poses (or
+    timestamps, actions) or a header over MAX_HEADER_BYTES."""
+    for name, d in (declared.items() if isinstance(declared, dict) else ()):
+        if d.rows > MAX_POSES or (name == "header" and d.nbytes > MAX_HEADER_BYTES):
+            raise ArrayFileError(f"{path}: member {name!r} declares {d.dtype} {d.shape}; a trajectory holds at most "
+                                 f"{MAX_POSES:,} poses and a header of {MAX_HEADER_BYTES >> 20} MiB")
 
 
 def timestamps(n: int, fps: float) -> np.ndarray:

@@ -3,6 +3,7 @@ context, and a file written whole or not at all."""
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 from contextlib import contextmanager
@@ -11,9 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from exporters.palette import UNLABELLED, label_colors
+from exporters.write_guard import RRD_APPLICATION_ID
 from generator.checks import check_integer
 
-APPLICATION_ID = "buildee-sites"
+APPLICATION_ID = RRD_APPLICATION_ID  # what marks a recording as written by this project
 MAX_POINTS = 1_000_000  # default cap on the points of one logged cloud
 UNLABELLED_ID = 65535   # class id of unlabelled pixels and points (label -1)
 FRAME_TIMELINE = "frame"  # sequence timeline: frame index t of a trajectory
@@ -49,12 +51,30 @@ def annotation_context(names: list[str]):
     return rr.AnnotationContext(infos)
 
 
+def quiet_rerun() -> None:
+    """Keep Rerun's own log lines (Rust's, on stderr) out of a command-line tool's one-line
+    errors, unless the user set RUST_LOG; call before rerun is first imported."""
+    os.environ.setdefault("RUST_LOG", "off")
+
+
+def _unwritable(tmp: Path, why: str) -> OSError:
+    """The OSError for a recording Rerun could not write whole, saying a full disk when it is one."""
+    try:
+        full = os.statvfs(tmp.parent).f_bavail * os.statvfs(tmp.parent).f_frsize < (1 << 20)
+    except OSError:
+        full = False
+    return OSError(errno.ENOSPC if full else errno.EIO, "no space left on the device" if full else
+                   f"Rerun could not write it whole: {why}", str(tmp))
+
+
 @contextmanager
 def recording_file(path: str | Path, recording_id: str, blueprint=None):
     """A RecordingStream saving to ``path`` (with ``blueprint`` as the default layout): written
-    under a temporary name beside it and renamed when everything is logged, so an interrupted
-    run leaves no half-written .rrd."""
+    under a temporary name beside it and renamed when everything is logged and the file ends
+    with Rerun's footer, so an interrupted run or a full disk leaves no half-written .rrd (a
+    write failure is an OSError naming the file)."""
     import rerun as rr
+    from rerun_bindings import check_for_rrd_footer
 
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
@@ -62,8 +82,13 @@ def recording_file(path: str | Path, recording_id: str, blueprint=None):
     rec.save(tmp, default_blueprint=blueprint)
     try:
         yield rec
-        rec.flush()
+        try:
+            rec.flush()
+        except RuntimeError as exc:  # Rerun's file writer stopped (e.g. no space left)
+            raise _unwritable(tmp, str(exc)) from None
         rec.disconnect()
+        if not check_for_rrd_footer(str(tmp)):
+            raise _unwritable(tmp, "the file ends without Rerun's footer")
         os.replace(tmp, path)
     finally:
         if tmp.exists():

@@ -57,10 +57,12 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"error: cannot create output folder {args.out}: {exc.strerror}", file=sys.stderr)
+    from exporters.write_guard import WriteRefused, claim_folder
+
+    try:  # a new or empty folder, or one holding only this tool's earlier outputs, unchanged
+        claimed = claim_folder(args.out, "--out", "python -m generator.baselines")
+    except WriteRefused as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     from ..blender import session
 
@@ -83,6 +85,7 @@ def main(argv=None) -> int:
     except ValueError as exc:  # the Simulator's and the site's own checks (one line each), e.g. a density too high
         print(f"error: {str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__}", file=sys.stderr)
         return 2
+    claimed.seal()
     print(f"took {time.perf_counter() - t0:.0f} s; results in {args.out}")
     return 0
 

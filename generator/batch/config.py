@@ -20,6 +20,9 @@ MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every 
 MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may get from the densities
 
 
+IMPLIED_CONFIG = {"phases": 1}  # config keys a manifest leaves out when they hold these values
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """scene_preset: site preset; render_preset: render quality; resolution: (W, H) pixels;
@@ -78,8 +81,9 @@ class RunConfig:
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
-        if self.phases == 1:
-            del d["phases"]  # a one-stage run's config reads as before timelines existed
+        for key, value in IMPLIED_CONFIG.items():  # a one-stage run's config reads as before timelines existed
+            if d[key] == value:
+                del d[key]
         return canonical_config(d)
 
     @classmethod

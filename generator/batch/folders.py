@@ -28,7 +28,7 @@ from pathlib import Path
 from exporters import FORMAT_VERSION
 from exporters.manifest import PARTIAL_MARKER, ManifestError, check_files, load_manifest
 
-from .config import canonical_config
+from .config import IMPLIED_CONFIG, canonical_config
 
 
 def seed_folder(out: Path, seed: int) -> Path:
@@ -37,6 +37,19 @@ def seed_folder(out: Path, seed: int) -> Path:
 
 def partial_folder(out: Path, seed: int) -> Path:
     return out / f".seed_{seed:06d}.partial"
+
+
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO)  # the disk refuses: nothing in the way
+
+
+def write_failure(exc: OSError, what: str) -> tuple[str, str]:
+    """(status, message) of a seed whose ``what`` could not be made: 'failed' (exit code 1)
+    when the disk refuses to write (full, over quota, read-only, I/O error), 'conflict' (exit
+    code 3, something in the way that the user made) otherwise."""
+    reason = exc.strerror or str(exc)
+    if exc.errno in DISK_ERRNOS:
+        return "failed", f"cannot write {what}: {reason}; free space on the disk or choose another --out, then rerun"
+    return "conflict", f"cannot write {what}: {reason}; move it away if you made it"
 
 
 def lock_file(out: Path, seed: int) -> Path:
@@ -135,7 +148,8 @@ class Decision:
 
 def _differences(old: dict, new: dict) -> str:
     keys = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
-    return ", ".join(f"{k} {old.get(k)!r} (now {new.get(k)!r})" for k in keys[:3]) + (" ..." if len(keys) > 3 else "")
+    shown = {k: (old.get(k, IMPLIED_CONFIG.get(k)), new.get(k, IMPLIED_CONFIG.get(k))) for k in keys[:3]}
+    return ", ".join(f"{k} {a!r} (now {b!r})" for k, (a, b) in shown.items()) + (" ..." if len(keys) > 3 else "")
 
 
 def decide(out: Path, seed: int, config: dict, overwrite: bool, repair: bool, hashes: bool | None) -> Decision:

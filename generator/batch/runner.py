@@ -80,9 +80,9 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
     try:
         lock = folders.SeedLock.try_acquire(out, seed)
     except OSError as exc:
-        return None, SeedResult(seed, "conflict", f"cannot lock with lock file {folders.lock_file(out, seed)}: "
-                                                  f"{exc.strerror}; move it away if you made it (a file system "
-                                                  "without flock needs a local --out)"), None
+        status, message = folders.write_failure(exc, f"the lock file {folders.lock_file(out, seed)}")
+        hint = "" if status == "failed" else " (a file system without flock needs a local --out)"
+        return None, SeedResult(seed, status, message + hint), None
     if lock is None:
         if opts.wait:
             return None, None, None

@@ -37,6 +37,13 @@ def main(argv=None) -> int:
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}
     from . import build_site
 
+    from exporters.write_guard import WriteRefused, claim_folder
+
+    try:  # a new or empty folder, or one holding only this tool's earlier outputs, unchanged
+        claimed = claim_folder(args.out, "--out", "python -m generator.scene")
+    except WriteRefused as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     t0 = time.perf_counter()
     try:
         result = build_site(args.seed, args.preset, args.out, preview=not args.no_preview, stage=args.stage,
@@ -47,6 +54,7 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"error: cannot write to {args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
+    claimed.seal()
     info = result.info
     print(f"seed {args.seed} ({args.preset}): {info['objects']} objects, {info['triangles']:,} triangles, "
           f"built in {time.perf_counter() - t0:.1f} s -> {result.blend}")

@@ -213,14 +213,15 @@ def _connect(address: str | None) -> str:
     """Join the cluster at ``address`` (else RAY_ADDRESS, else start a local Ray); returns
     the address joined ('local' for a Ray started here). ExecutorError (one line) if no
     cluster answers."""
+    source = "--ray-address" if address else "$RAY_ADDRESS"  # which one the user should mend
     address = address or os.environ.get("RAY_ADDRESS") or None
     if address and address.startswith("ray://"):
-        raise ExecutorError(f"--ray-address {address}: Ray Client addresses (ray://) are not supported; run the "
+        raise ExecutorError(f"{source} {address}: Ray Client addresses (ray://) are not supported; run the "
                             "command on a node of the cluster and give the head's HOST:PORT, or auto")
     if address not in (None, "auto", "local"):
         host, _, port = address.rpartition(":")
         if not host or not port.isdigit():
-            raise ExecutorError(f"--ray-address must be HOST:PORT (the head node's address, as `ray start --head` "
+            raise ExecutorError(f"{source} must be HOST:PORT (the head node's address, as `ray start --head` "
                                 f"prints it) or auto; got {address!r}")
         try:
             socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT_S).close()

@@ -82,7 +82,7 @@ def produce_seed(job: SeedJob, emit: Emit, started: Callable[[subprocess.Popen],
     try:
         work = folders.SeedLock.wait_for_work(out, job.seed, WORK_LOCK_WAIT, cancelled)
     except OSError as exc:
-        return Outcome(job.seed, "conflict", f"cannot lock {work_path}: {exc.strerror or exc}")
+        return Outcome(job.seed, *folders.write_failure(exc, f"the work lock {work_path}"))
     if cancelled is not None and cancelled.is_set():
         if work is not None:
             work.release()
@@ -109,7 +109,9 @@ def _produce(job: SeedJob, emit: Emit, started, out: Path, t0: float, work: fold
     """produce_seed holding the seed's work lock, which the worker process shares."""
     try:
         folder, note = folders.start_partial(out, job.seed)
-    except OSError as exc:
+    except OSError as exc:  # the disk refuses (exit code 1), or a folder not ours has its name (left alone)
+        if exc.errno in folders.DISK_ERRNOS:
+            return Outcome(job.seed, *folders.write_failure(exc, f"the partial folder of seed {job.seed} in {out}"))
         return Outcome(job.seed, "conflict", exc.strerror or str(exc))
     if note:
         emit({"event": "note", "message": note})
