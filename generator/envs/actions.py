@@ -58,12 +58,33 @@ def heading_and_pitch(pose: np.ndarray) -> tuple[float, float]:
     return portable_math.atan2(f[1], f[0]), pitch
 
 
+def real_action(action) -> np.ndarray:
+    """``action`` as 5 finite float64 numbers; anything else (another count, NaN or infinity,
+    and values whose conversion would drop or invent information: complex numbers, booleans,
+    strings, bytes, dates, Python objects) is a one-line ValueError."""
+    try:
+        raw = np.asarray(action)
+    except (ValueError, TypeError):
+        raw = None
+    if raw is None or raw.dtype.kind not in "iuf":
+        kind = "a ragged sequence" if raw is None else f"dtype {raw.dtype}"
+        raise ValueError(f"a continuous action is 5 finite real numbers {CONTINUOUS_FIELDS} (integers or floats), "
+                         f"got {kind}: {_short(action)}")
+    a = raw.astype(np.float64).reshape(-1)
+    if a.shape != (5,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"a continuous action is 5 finite numbers {CONTINUOUS_FIELDS}, got {_short(action)}")
+    return a
+
+
+def _short(value) -> str:
+    """``repr(value)`` on one line, at most 200 characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
 def continuous_targets(pose: np.ndarray, action: np.ndarray, step: float, angle: float) -> tuple[np.ndarray, np.ndarray]:
     """(turned pose, turned and moved pose) of a continuous action (see the module docstring)."""
-    a = np.asarray(action, dtype=np.float64).reshape(-1)
-    if a.shape != (5,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"a continuous action is 5 finite numbers {CONTINUOUS_FIELDS}, got {action!r}")
-    a = np.clip(a, -1.0, 1.0)
+    a = np.clip(real_action(action), -1.0, 1.0)
     pose = np.asarray(pose, dtype=np.float64)
     yaw, pitch = heading_and_pitch(pose)
     if a[3] == 0 and a[4] == 0:

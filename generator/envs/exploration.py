@@ -24,7 +24,7 @@ from ..render_settings import PRESETS as RENDER_PRESETS
 from ..render_settings import check_side
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, DISCRETE_ACTIONS, continuous_targets, discrete_target, heading_and_pitch
-from .scenes import SceneSpec, blend_scene, default_cache_dir, site_scene
+from .scenes import SceneSpec, blend_scene, check_cache_dir, site_is_intact, site_scene
 
 MAX_RESOLUTION = 4096  # pixels, width and height of the observations
 MAX_LABEL_ID = 255  # upper bound of the label observation (ids index Simulator.labels)
@@ -118,9 +118,12 @@ class ExplorationEnv(gym.Env):
         return self._scenes[index]
 
     def _load(self, index: int) -> None:
-        spec = self.scene_spec(index)
-        if self.scene is spec and self.scene_is_loaded:
+        spec = self._scenes.get(index)
+        if spec is not None and self.scene is spec and self.scene_is_loaded:
             return
+        if spec is not None and self._sources[index][0] == "seed" and not site_is_intact(spec):
+            self._scenes.pop(index)  # damaged since its first use: scene_spec rebuilds it (with a warning)
+        spec = self.scene_spec(index)  # a site's first use checks its files and its code key (site_scene)
         Simulator = _simulator_class()
         self.sim = None  # Blender holds one scene: drop the old Simulator first
         from ..blender.session import BlendFileError  # bpy is loaded by now
@@ -321,7 +324,7 @@ def check_keywords(**keywords) -> dict:
         "render_preset": _choice("render_preset", kw["render_preset"], tuple(RENDER_PRESETS)),
         "render_mode": _choice("render_mode", kw["render_mode"], (None, *ExplorationEnv.metadata["render_modes"])),
         "scene_preset": _choice("scene_preset", kw["scene_preset"], tuple(PRESETS)),
-        "cache_dir": _cache_dir(kw["cache_dir"]),
+        "cache_dir": check_cache_dir(kw["cache_dir"]),
         "sources": _sources(kw["seeds"], kw["blend_files"]),
         "action_space": _choice("action_space", kw["action_space"], ("discrete", "continuous")),
     }
@@ -337,17 +340,6 @@ def _flag(name: str, value) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")
     return bool(value)
-
-
-def _cache_dir(value) -> Path:
-    if value is None:
-        return default_cache_dir()
-    if not isinstance(value, (str, os.PathLike)) or not str(value):
-        raise ValueError(f"cache_dir must be a folder path (str or os.PathLike) or None, got {value!r}")
-    path = Path(value)
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"cache_dir: {path} exists and is not a folder; pass a folder for the built sites")
-    return path
 
 
 def _resolution(value) -> tuple[int, int]:

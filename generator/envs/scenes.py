@@ -2,30 +2,32 @@
 .blend files, each with the camera's start pose and the box it must stay in.
 
 A procedural site of ``(preset, seed)`` is built by :func:`generator.scene.build_site`
-(without preview) into ``cache_dir/<preset>_seed<seed>/`` the first time any process asks
-for it; a lock file keeps two processes (e.g. the workers of an ``AsyncVectorEnv``) from
-building it twice, and the folder appears only complete (built under a temporary name,
-then renamed). ``scene.json`` beside ``site.blend`` holds the start pose and the bounds
-(the site's camera spawn volume), so later episodes need no planning, and the
-:func:`site_code_key` it was built with: a folder built by other code (another version of
-the site generator, of Blender or of numpy) is rebuilt in place rather than reused.
+(without preview) into the entry ``cache_dir/<preset>_seed<seed>/`` of the site cache
+(:mod:`.site_cache`) the first time any process asks for it: one build at a time (a lock
+file), the folder appears only complete, its files are checked against their recorded
+hashes before every use (a damaged entry is rebuilt, with a warning), and a folder the cache
+did not make is never replaced. ``scene.json`` beside ``site.blend`` holds the start pose and
+the bounds (the site's camera spawn volume), so later episodes need no planning, and the
+:func:`site_code_key` it was built with: an entry built by other code (another version of
+the site generator, of Blender or of numpy) is rebuilt in place rather than reused. A
+``cache_dir`` inside a generated dataset is refused.
 """
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import importlib.metadata
 import json
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from exporters.write_guard import WriteRefused, check_not_in_dataset
+
 from .code_key import import_closure
+from .site_cache import cached_entry, entry_state
 
 SCENE_FILE = "scene.json"  # written next to a cached site.blend; read by load_site_scene
 SCENE_FORMAT = 2
@@ -88,18 +90,45 @@ def site_code_key(root: Path = PACKAGE_ROOT) -> str:
     return h.hexdigest()
 
 
+def check_cache_dir(value) -> Path:
+    """``cache_dir`` as the environment takes it (None: :func:`default_cache_dir`): a folder
+    path, not an existing file, and not inside a generated dataset (a seed, a timeline seed,
+    one of its stages, a folder being generated); else a one-line ValueError."""
+    if value is None:
+        value = default_cache_dir()
+    if not isinstance(value, (str, os.PathLike)) or not str(value):
+        raise ValueError(f"cache_dir must be a folder path (str or os.PathLike) or None, got {value!r}")
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"cache_dir: {path} exists and is not a folder; pass a folder for the built sites")
+    try:
+        check_not_in_dataset(path, "cache_dir")
+    except WriteRefused as exc:
+        raise ValueError(str(exc)) from None
+    return path
+
+
 def site_scene(seed: int, preset: str, cache_dir: str | os.PathLike) -> SceneSpec:
-    """The procedural site of ``seed`` (built and cached on first use, rebuilt when
-    :func:`site_code_key` has changed since; imports bpy then)."""
-    folder = Path(cache_dir) / f"{preset}_seed{seed}"
+    """The procedural site of ``seed``, from the cache (built on first use, rebuilt when
+    :func:`site_code_key` has changed since or its files differ from their recorded hashes;
+    imports bpy then). Its files are checked against their hashes at every call. A folder
+    the cache did not make raises :class:`.site_cache.ForeignEntry` (a ValueError)."""
+    folder = check_cache_dir(cache_dir) / f"{preset}_seed{seed}"
     key = site_code_key()
-    if not _is_current(folder, key):
-        _build_locked(seed, preset, folder, key)
+    cached_entry(folder, lambda entry: _is_current(entry, key), lambda out: _build(seed, preset, out, key))
     return load_site_scene(folder)
 
 
+def site_is_intact(spec: SceneSpec) -> bool:
+    """Whether the cache entry of the site ``spec`` (from :func:`site_scene`) still holds
+    exactly the files it recorded, with their hashes (checked before every load of a site
+    already in use: cheaper than :func:`site_scene`, which also computes the code key). An
+    entry replaced by a folder the cache did not make raises :class:`.site_cache.ForeignEntry`."""
+    return entry_state(spec.blend.parent)[0] == "intact"
+
+
 def _is_current(folder: Path, key: str) -> bool:
-    """True if ``folder`` holds a complete site built by code of ``key``."""
+    """True if the entry ``folder`` holds a site built by code of ``key``."""
     try:
         meta = json.loads((folder / SCENE_FILE).read_text())
     except (OSError, ValueError):
@@ -108,7 +137,7 @@ def _is_current(folder: Path, key: str) -> bool:
 
 
 def load_site_scene(folder: Path) -> SceneSpec:
-    """Read a cached site's ``scene.json`` (written by :func:`_build_locked`)."""
+    """Read a cached site's ``scene.json`` (written by :func:`_build`)."""
     path = folder / SCENE_FILE
     try:
         meta = json.loads(path.read_text())
@@ -117,29 +146,10 @@ def load_site_scene(folder: Path) -> SceneSpec:
         start = np.array(meta["start"], dtype=np.float64).reshape(4, 4)
         lo, hi = (np.array(v, dtype=np.float64).reshape(3) for v in meta["bounds"])
         seed = int(meta["seed"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise ValueError(f"{path} is not a usable cached scene ({exc}); delete {folder} to rebuild it") from None
     return SceneSpec(name=f"{meta['preset']}_seed{seed}", blend=folder / "site.blend", start=start, bounds=(lo, hi),
                      seed=seed)
-
-
-def _build_locked(seed: int, preset: str, folder: Path, key: str) -> None:
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    with open(folder.parent / f".{folder.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if _is_current(folder, key):
-            return  # another process built it while we waited
-        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))
-        old = folder.parent / f"{tmp.name}-old"
-        try:
-            _build(seed, preset, tmp, key)
-            if folder.exists():  # a stale site, or an incomplete folder left by a killed build
-                os.rename(folder, old)
-            os.rename(tmp, folder)
-        finally:
-            for leftover in (tmp, old):
-                if leftover.exists():
-                    shutil.rmtree(leftover, ignore_errors=True)
 
 
 def _build(seed: int, preset: str, out: Path, key: str) -> None:
@@ -153,4 +163,4 @@ def _build(seed: int, preset: str, out: Path, key: str) -> None:
             "bounds": [lo.tolist(), hi.tolist()],
             "start_rule": "level camera at the site's entrance, lowest spawn height, looking in (baselines)",
             "bounds_rule": "the site plan's camera spawn volume"}
-    (out / SCENE_FILE).write_text(json.dumps(meta, indent=1))  # last: marks the folder complete
+    (out / SCENE_FILE).write_text(json.dumps(meta, indent=1))
