@@ -3,12 +3,13 @@
 Blender writes one multilayer EXR per render (linear RGB, planar depth, object index and
 Cryptomatte object coverage) and, through the compositor, a 16-bit TIFF of the
 display-referred RGB. This module reads both and turns them into ``rgb``, ``depth``,
-``seg`` and ``instance`` arrays.
+``seg`` and ``instance`` arrays. The Cryptomatte manifest Blender writes in the EXR header
+is not read (it is not valid JSON for names with quotes, backslashes or control
+characters): an object's Cryptomatte id is computed from its name (:func:`cryptomatte_id`).
 """
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,6 @@ class RawPasses:
     object_index: np.ndarray | None  # (H, W) int32 pass index at the pixel centre, 0 = none
     crypto_ids: np.ndarray | None  # (R, H, W) uint32 Cryptomatte hashes, best rank first
     crypto_coverage: np.ndarray | None  # (R, H, W) float32 coverage of each rank
-    crypto_manifest: dict[str, int] = field(default_factory=dict)  # object name -> its pixel id (uint32 bits)
     rgb_display: np.ndarray | None = None  # (H, W, 3) float32 in [0, 1], view transform applied
 
 
@@ -83,6 +83,36 @@ class RenderOutput:
         return (self.rgb, self.depth, self.seg)[index]
 
 
+_M32 = 0xFFFFFFFF
+
+
+def _rotl32(x: int, r: int) -> int:
+    return ((x << r) | (x >> (32 - r))) & _M32
+
+
+def _mix_block(k: int) -> int:
+    return (_rotl32((k * 0xCC9E2D51) & _M32, 15) * 0x1B873593) & _M32
+
+
+def murmur3_32(data: bytes, seed: int = 0) -> int:
+    """MurmurHash3 (x86, 32-bit) of ``data``: the hash Cryptomatte gives a name."""
+    h, n = seed, len(data) - len(data) % 4
+    for i in range(0, n, 4):
+        h = (_rotl32(h ^ _mix_block(int.from_bytes(data[i:i + 4], "little")), 13) * 5 + 0xE6546B64) & _M32
+    if n < len(data):
+        h ^= _mix_block(int.from_bytes(data[n:], "little"))
+    h ^= len(data)
+    h = ((h ^ (h >> 16)) * 0x85EBCA6B) & _M32
+    h = ((h ^ (h >> 13)) * 0xC2B2AE35) & _M32
+    return h ^ (h >> 16)
+
+
+def cryptomatte_id(name: str) -> int:
+    """The uint32 bits the Cryptomatte object pass holds for the object named ``name``: the
+    murmur3 hash of its UTF-8 bytes (the manifest's hash) as Blender stores it in a float."""
+    return cryptomatte_pixel_id(murmur3_32(name.encode("utf-8", "surrogateescape")))
+
+
 def cryptomatte_pixel_id(name_hash: int) -> int:
     """The uint32 bits a Cryptomatte pixel holds for an object whose manifest hash (32-bit
     murmur3 of its name) is ``name_hash``: Blender stores the hash as a float32 with the
@@ -101,16 +131,10 @@ def read_blender_exr(path: str | Path) -> RawPasses:
     use_all_cores()
 
     channels: dict[str, np.ndarray] = {}
-    manifest: dict[str, int] = {}
     with OpenEXR.File(str(path), separate_channels=True) as f:
         for part in f.parts:
             for name, ch in part.channels.items():
                 channels[name] = ch.pixels
-            for key, value in part.header.items():
-                if key.startswith("cryptomatte/") and key.endswith("/name") and "object" in str(value).lower():
-                    prefix = key[: -len("name")]
-                    raw = part.header.get(prefix + "manifest", "{}")
-                    manifest.update({n: cryptomatte_pixel_id(int(h, 16)) for n, h in json.loads(raw).items()})
 
     def find(suffix: str):
         hits = [k for k in channels if k.endswith(suffix)]
@@ -138,7 +162,6 @@ def read_blender_exr(path: str | Path) -> RawPasses:
         object_index=np.rint(index).astype(np.int32) if index is not None else None,
         crypto_ids=np.stack(ids) if ids else None,
         crypto_coverage=np.stack(cov) if cov else None,
-        crypto_manifest=manifest,
     )
 
 

@@ -14,6 +14,7 @@ from .blender import session  # imports bpy first (before open3d)
 from .blender import camera as bcam
 from .blender.extract import assign_pass_indices, dynamic_matrices, extract_parts
 from .blender.objects import SceneError, check_names, filtered_parts, object_table  # noqa: F401 (SceneError is public)
+from .blender.objects import check_object_count
 from .blender.render import RenderSettings, apply_settings, resolve_settings
 from .blender.devices import active as active_device
 from .checks import MAX_FRAME, Checked, check_flag, check_integer, check_number, check_seed
@@ -110,6 +111,7 @@ class Simulator(CameraMoves, PaperAPI):
         # every argument is checked before the file is loaded: loading replaces Blender's
         # scene, and with it the scene of any Simulator made before this one
         settings = resolve_settings(render_preset) if render_preset is not None else None
+        check_object_count(self.blend_file)  # from the file's index, before loading it
 
         session.open_blend(self.blend_file)
         self._generation = session.generation()

@@ -10,11 +10,11 @@ import time
 
 import numpy as np
 
-from .blender.extract import PassTable, label_of
+from .blender.extract import PassTable, label_of, objects_by_name
 from .blender.render import Renderer
 from .geometry.pixel_truth import CameraModel, PixelTruth, check_ground_truth
 from .geometry.raycam import GeometricRender, PixelHits, geometric_render
-from .passes import RenderOutput, label_coverage, semantic_map
+from .passes import RenderOutput, cryptomatte_id, label_coverage, semantic_map
 
 
 class ViewRenderer:
@@ -34,6 +34,7 @@ class ViewRenderer:
         self.label_of_part = label_of_part
         self.label_ids = label_ids
         self.renderer: Renderer | None = None
+        self.cryptomatte_labels: dict[int, int] = {}  # Cryptomatte id -> label id, made with the renderer
         self.last_timings: dict[str, float] = {}  # seconds per stage of the last render()
 
     def hits(self, camera: CameraModel, world_from_camera: np.ndarray, normals: bool) -> PixelHits:
@@ -47,6 +48,7 @@ class ViewRenderer:
         ground_truth = check_ground_truth(ground_truth)
         if self.renderer is None:
             self.renderer = Renderer()
+            self.cryptomatte_labels = self._cryptomatte_labels()
         # with ray-cast ground truth the pixel-centre cast runs while Blender renders; the
         # answer is kept by pixel_truth for _ground_truth_maps
         cast = (lambda: self.hits(camera, world_from_camera, False)) if ground_truth == "geometry" else None
@@ -56,13 +58,17 @@ class ViewRenderer:
         depth, index, label_of_index, instance_of_index = maps
         coverage = None
         if raw.crypto_ids is not None:
-            hash_to_label = {h: self.label_ids.get(label_of(n), -2) for n, h in raw.crypto_manifest.items()}
-            coverage = lambda seg: label_coverage(raw, hash_to_label, seg)  # noqa: E731
+            coverage = lambda seg: label_coverage(raw, self.cryptomatte_labels, seg)  # noqa: E731
         sensitivity = segmentation_sensitivity if coverage is not None else 0.0
         seg, inst = semantic_map(index, label_of_index, instance_of_index, sensitivity, coverage)
         self.last_timings = dict(self.renderer.last_timings, labels=time.perf_counter() - t0)
         return RenderOutput(raw.rgb_display, depth, seg, inst, raw.rgb_linear, np.array(camera.K, dtype=np.float64),
                             np.array(world_from_camera, dtype=np.float64), int(frame))
+
+    def _cryptomatte_labels(self) -> dict[int, int]:
+        """Cryptomatte id -> label id of every Blender object (-2: a label the Simulator does
+        not have, e.g. a filtered object's), ids computed from the names (passes.cryptomatte_id)."""
+        return {cryptomatte_id(name): self.label_ids.get(label_of(name), -2) for name in objects_by_name()}
 
     def render_geometry(self, camera: CameraModel, world_from_camera: np.ndarray, frame: int,
                         normals: bool) -> GeometricRender:

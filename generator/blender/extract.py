@@ -10,7 +10,7 @@ docs/rendering.md, "What of a .blend is honoured".
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -18,6 +18,7 @@ import numpy as np
 from ..geometry.camera import affine_inverse, apply_affine, matmul_exact
 from ..geometry.parts import MeshPart, closed_and_orientation
 from .animation import animated_visibility, deforming, dynamic_object_names, moves_within
+from .keys import instance_key, object_key
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SPAWN_LABEL = "CameraSpawn"
@@ -35,13 +36,16 @@ class DynamicBinding:
 
     world_from_object(t) = world(driver, t) @ offset [@ world(source, t)], where ``driver`` is
     the object whose evaluated matrix moves the part (the object itself, or the instancer of an
-    instance) and ``source``, for a collection instance of a moving object, that object.
+    instance) and ``source``, for a collection instance of a moving object, that object (by name;
+    ``driver_object`` and ``source_object`` are those Blender objects, found once at load).
     """
 
     part: int
     driver: str
     offset: np.ndarray
     source: str | None = None
+    driver_object: object = field(default=None, repr=False, compare=False)
+    source_object: object = field(default=None, repr=False, compare=False)
 
 
 def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +73,7 @@ def _evaluated_mesh(obj, cache: dict):
             verts, faces = _mesh_arrays(mesh) if mesh is not None else (np.zeros((0, 3)), np.zeros((0, 3), np.int32))
         finally:
             obj.to_mesh_clear()
-    closed, outward = closed_and_orientation(verts, faces) if len(faces) else (False, 1)
+    closed, outward = closed_and_orientation(verts, faces) if len(faces) and np.isfinite(verts).all() else (False, 1)
     result = (verts, faces, closed, outward)
     if key is not None:
         cache[key] = result
@@ -192,7 +196,7 @@ def _instance(inst, scene, dynamic: set[str], memo: dict) -> tuple[_Found, str |
         refusal = (f"the particles of {parent.name!r} ({psys.name}) move, appear or die during frames "
                    f"{scene.frame_start}-{scene.frame_end}; copies are taken once at load: use Physics 'None' "
                    "with every particle alive over those frames, or hair")
-    found = _Found(f"{parent.name}/{obj.name}#{pid}", obj.name, _matrix(inst.matrix_world),
+    found = _Found(instance_key(parent.name, obj.name, pid), obj.name, _matrix(inst.matrix_world),
                    parent.name in dynamic or source is not None, parent.name, _matrix(inst.parent.matrix_world), source)
     return found, refusal
 
@@ -231,11 +235,12 @@ def extract_parts() -> ExtractedScene:
             refusals.append(refusal)
         else:
             name = _original(inst.object).name
-            f = _Found(name, name, _matrix(inst.matrix_world), name in dynamic, name, None, None)
+            f = _Found(object_key(name), name, _matrix(inst.matrix_world), name in dynamic, name, None, None)
         refusals.append(_holdout(inst, flags))
         verts, faces, closed, outward = _evaluated_mesh(inst.object, cache)
         if len(faces) == 0:
             continue
+        refusals.append(_not_finite(f, verts))
         if label_of(f.name) == SPAWN_LABEL:
             wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
             c, o = closed_and_orientation(wv, faces)
@@ -251,17 +256,52 @@ def extract_parts() -> ExtractedScene:
     # hide_render may show them later; and what instancing brings in
     scene_objects = set(scene.objects) | rendered | {_original(i.parent) for i in depsgraph.object_instances if i.is_instance}
     shapes = [o for o in scene_objects if o.type in GEOMETRY_TYPES or o.type == "EMPTY"]  # not lights, cameras
-    refusal = _first(*refusals, animated_visibility(shapes), deforming(rendered))
+    refusal = _first(*refusals, _shared_name(rendered), animated_visibility(shapes), deforming(rendered))
     return ExtractedScene(parts, bindings, spawn, refusal)
+
+
+def _shared_name(objects) -> str | None:
+    """A one-line refusal if two of the rendered ``objects`` have one name (a local object and
+    one linked from a library can): the Simulator tells objects apart by their names."""
+    seen = {}
+    for obj in sorted(objects, key=lambda o: (o.name, o.library is not None)):
+        first = seen.setdefault(obj.name, obj)
+        if first != obj:
+            where = [f"linked from {o.library.name!r}" if o.library else "of this file" for o in (first, obj)]
+            return (f"two rendered objects are named {obj.name!r} ({where[0]}, {where[1]}); objects are told apart "
+                    "by name: rename one (make the linked one local, or rename it in its library)")
+    return None
+
+
+def _not_finite(f: _Found, verts: np.ndarray) -> str | None:
+    """A one-line refusal if an object's vertices or world matrix hold NaN or infinity."""
+    if np.isfinite(f.world).all() and np.isfinite(verts).all():
+        return None
+    if not np.isfinite(verts).all():
+        return (f"object {f.name!r} has NaN or infinite coordinates in its vertices (after its modifiers): fix or "
+                "delete those vertices, or delete the object")
+    return (f"object {f.name!r} has NaN or infinite coordinates in its world matrix (transform, parent or "
+            "constraints): fix them, or delete the object")
+
+
+def objects_by_name() -> dict:
+    """Blender's objects by name, made once (``bpy.data.objects[name]`` searches them all;
+    of two objects of one name, a local one and a linked one, the first, as that lookup does)."""
+    table = {}
+    for obj in bpy.data.objects:
+        table.setdefault(obj.name, obj)
+    return table
 
 
 def _parts_of(found, depsgraph) -> tuple[list[MeshPart], list[DynamicBinding]]:
     parts, bindings = [], []
+    objects = objects_by_name() if any(f.is_dyn for f, *_ in found) else {}
     for f, verts, faces, closed, outward in found:
         label = label_of(f.name)
         if f.is_dyn:
-            offset = _offset(f.world, f.parent_world, f.source, depsgraph)
-            bindings.append(DynamicBinding(len(parts), f.driver, offset, f.source))
+            source = objects[f.source] if f.source is not None else None
+            offset = _offset(f.world, f.parent_world, source, depsgraph)
+            bindings.append(DynamicBinding(len(parts), f.driver, offset, f.source, objects[f.driver], source))
             parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name))
         else:
             wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
@@ -272,13 +312,13 @@ def _parts_of(found, depsgraph) -> tuple[list[MeshPart], list[DynamicBinding]]:
 
 
 def _offset(world, parent_world, source, depsgraph) -> np.ndarray:
-    """The constant of a binding: world = driver @ offset (@ source)."""
+    """The constant of a binding: world = driver @ offset (@ source, a Blender object)."""
     if parent_world is None:
         return np.eye(4)
     offset = matmul_exact(affine_inverse(parent_world), world)
     if source is None:
         return offset
-    moving = bpy.data.objects[source].evaluated_get(depsgraph)
+    moving = source.evaluated_get(depsgraph)
     return matmul_exact(offset, affine_inverse(_matrix(moving.matrix_world)))
 
 
@@ -287,15 +327,23 @@ def dynamic_matrices(bindings: list[DynamicBinding]) -> dict[int, np.ndarray]:
     depsgraph = bpy.context.evaluated_depsgraph_get()
     out = {}
     for b in bindings:
-        obj = bpy.data.objects[b.driver].evaluated_get(depsgraph)
+        obj = b.driver_object.evaluated_get(depsgraph)
         m = matmul_exact(_matrix(obj.matrix_world), b.offset)  # BLAS-free
         if b.source is not None:
-            m = matmul_exact(m, _matrix(bpy.data.objects[b.source].evaluated_get(depsgraph).matrix_world))
+            m = matmul_exact(m, _matrix(b.source_object.evaluated_get(depsgraph).matrix_world))
         out[b.part] = m
     return out
 
 
 MAX_PASS_INDEX = 32767  # Blender's Object.pass_index is a short
+
+
+def too_many_objects(count: int, where) -> str | None:
+    """A one-line refusal if ``count`` objects need more pass indices than Blender has, else None."""
+    if count <= MAX_PASS_INDEX:
+        return None
+    return (f"{where} has {count} objects, more than Blender's {MAX_PASS_INDEX} object pass indices (the Object "
+            "Index pass numbers objects): join objects (Ctrl+J), delete unused ones, or split the scene")
 
 
 @dataclass
@@ -308,6 +356,16 @@ class PassTable:
     of_part: np.ndarray
 
 
+def pass_index_owners(parts: list[MeshPart]) -> dict[str, int]:
+    """Blender object name -> its first part, for the objects that need a pass index (those
+    whose parts have faces; instanced copies share their object's)."""
+    first_part: dict[str, int] = {}
+    for i, p in enumerate(parts):
+        if len(p.faces):
+            first_part.setdefault(p.source, i)
+    return first_part
+
+
 def assign_pass_indices(parts: list[MeshPart], label_ids: dict[str, int]) -> PassTable:
     """Give every simulated Blender object a unique ``pass_index`` (1, 2, ...; 0 = none).
 
@@ -315,19 +373,18 @@ def assign_pass_indices(parts: list[MeshPart], label_ids: dict[str, int]) -> Pas
     those parts. A part with no faces (an object of a fixed instance table that this scene
     lacks) has no Blender object and pass index 0.
     """
-    first_part: dict[str, int] = {}
-    for i, p in enumerate(parts):
-        if len(p.faces):
-            first_part.setdefault(p.source, i)
-    if len(first_part) > MAX_PASS_INDEX:
-        raise ValueError(f"{len(first_part)} objects exceed Blender's {MAX_PASS_INDEX} object pass indices")
+    first_part = pass_index_owners(parts)
+    refusal = too_many_objects(len(first_part), "the scene")
+    if refusal:
+        raise ValueError(refusal)
     for obj in bpy.data.objects:
         obj.pass_index = 0
+    objects = objects_by_name()
     labels = np.full(len(first_part) + 1, -1, dtype=np.int32)
     instances = np.full(len(first_part) + 1, -1, dtype=np.int32)
     index_of_source = {}
     for k, (source, i) in enumerate(first_part.items(), start=1):
-        bpy.data.objects[source].pass_index = k
+        objects[source].pass_index = k
         labels[k] = label_ids[parts[i].label]
         instances[k] = i
         index_of_source[source] = k

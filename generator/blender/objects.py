@@ -13,7 +13,8 @@ import numpy as np
 from ..checks import items
 from ..geometry.parts import MeshPart
 from . import session
-from .extract import label_of
+from .extract import MAX_PASS_INDEX, label_of, pass_index_owners, too_many_objects
+from .keys import key_names, owner_name
 
 
 class SceneError(ValueError):
@@ -37,7 +38,7 @@ def object_table(extracted, filter_object_names: tuple[str, ...], instance_names
         raise SceneError(f"{blend}: {extracted.refusal}")
     if not extracted.parts:
         raise SceneError(f"{blend} has no render-visible mesh objects with faces (that the camera sees)")
-    known = {p.name.split("/")[0] for p in extracted.parts}
+    known = {owner_name(p.name) for p in extracted.parts}
     absent = [n for n in filter_object_names if n not in known]
     if absent:  # a typo would filter nothing; the paper's scripts may name objects a scene lacks
         warnings.warn(f"filter_object_names: {blend} has no mesh object {', '.join(map(repr, absent))}; nothing is "
@@ -47,7 +48,21 @@ def object_table(extracted, filter_object_names: tuple[str, ...], instance_names
         raise SceneError(f"{blend}: filter_object_names leaves no mesh objects")
     if instance_names is not None:
         parts, bindings = _on_instance_table(parts, bindings, check_names("instance_names", instance_names), blend)
+    refusal = too_many_objects(len(pass_index_owners(parts)), blend)
+    if refusal:
+        raise SceneError(refusal)
     return parts, bindings, label_table({p.label for p in parts})
+
+
+def check_object_count(blend: Path) -> None:
+    """SceneError (one line) if the .blend holds more objects than Blender has object pass
+    indices, found from the file's index before it is loaded (session.objects_in_file). Every
+    object counts, rendered or not: loading such a file would take long before the count of
+    the rendered ones were known (the file Blender has open is counted after loading, by
+    :func:`object_table`). BlendFileError if the file is missing or unreadable."""
+    count = session.objects_in_file(blend)
+    if count is not None and count > MAX_PASS_INDEX:
+        raise SceneError(too_many_objects(count, blend))
 
 
 def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ...]):
@@ -55,13 +70,13 @@ def _without_objects(parts: list[MeshPart], bindings: list, names: tuple[str, ..
     belongs to its instancer's name), binding indices renumbered."""
     if not names:
         return parts, bindings
-    return _select(parts, bindings, lambda p: p.name.split("/")[0] not in names)
+    return _select(parts, bindings, lambda p: owner_name(p.name) not in names)
 
 
 def filtered_parts(extracted, filter_object_names: tuple[str, ...]):
     """(parts, dynamic bindings) of the ``filter_object_names`` objects alone: not simulated,
     but still surfaces in the image (generator/geometry/pixel_truth.py)."""
-    return _select(extracted.parts, extracted.bindings, lambda p: p.name.split("/")[0] in filter_object_names)
+    return _select(extracted.parts, extracted.bindings, lambda p: owner_name(p.name) in filter_object_names)
 
 
 def _select(parts: list[MeshPart], bindings: list, keep_part):
@@ -82,7 +97,7 @@ def _on_instance_table(parts: list[MeshPart], bindings: list, names: tuple[str, 
     if missing:
         raise ValueError(f"instance_names lacks {len(missing)} object(s) of {blend}, e.g. {missing[0]!r}; "
                          "give every object of the scene")
-    table = [MeshPart(n, label_of(n), np.zeros((0, 3)), np.zeros((0, 3), np.int64)) for n in names]
+    table = [MeshPart(n, label_of(key_names(n)[1]), np.zeros((0, 3)), np.zeros((0, 3), np.int64)) for n in names]
     for p in parts:
         table[index[p.name]] = p
     return table, [replace(b, part=index[parts[b.part].name]) for b in bindings]
