@@ -173,6 +173,11 @@ def _listed_files(path: str, stamp: tuple) -> dict:
     return load_manifest(Path(path).parent)["files"]
 
 
+def forget_manifests() -> None:
+    """Drop the manifests :func:`listed_sha256` holds (the next call reads them again)."""
+    _listed_files.cache_clear()
+
+
 def listed_sha256(path: str | Path) -> str | None:
     """The sha256 that the manifest of the complete seed holding ``path`` lists for it; None
     when no complete seed holds it (a file elsewhere, or in a folder still being generated).
