@@ -17,7 +17,7 @@ import numpy as np
 from generator.checks import check_integer, items
 
 from .scene import DatasetError, MissingKeyError, Sequence, check_index, read_labels, read_point_cloud, seed_fields
-from .tasks import _Base, _to_tensor, checked_keys, trajectory_kinds
+from .tasks import TaskDataset, checked_keys, to_tensor, trajectory_kinds
 
 
 class Timeline:
@@ -53,7 +53,7 @@ class Timeline:
         return self._sequences[stage, kind]
 
 
-class ChangePairDataset(_Base):
+class ChangePairDataset(TaskDataset):
     """Pairs of frames with the same pose at consecutive stages, and what changed between them.
 
     Item: ``before`` and ``after`` (dicts of the frames' modalities, as FrameDataset's, K and
@@ -103,7 +103,7 @@ class ChangePairDataset(_Base):
             change = self.transform({"instance": change.astype(np.int32), "K": after["K"]})["instance"] == 1
         sample = {"before": before, "after": after, "change": change, "stages": np.array([k - 1, k]),
                   "K": after["K"], "pose": after["pose"], "scene": tl.seed, "trajectory": kind, "index": j}
-        return _to_tensor(sample) if self.as_tensor else sample
+        return to_tensor(sample) if self.as_tensor else sample
 
 
 def change_clouds(path: str | Path | Timeline, before: int, after: int) -> dict:

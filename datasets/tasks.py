@@ -31,7 +31,8 @@ def _check_count(name: str, value) -> None:
         check_integer(name, value, 1, valid="None or an integer >= 1")
 
 
-def _to_tensor(sample: dict) -> dict:
+def to_tensor(sample: dict) -> dict:
+    """``sample`` with its numeric arrays as torch tensors (nested dicts too; float16 as float32)."""
     try:
         import torch
     except ImportError:
@@ -41,7 +42,7 @@ def _to_tensor(sample: dict) -> dict:
         if isinstance(v, np.ndarray) and v.dtype != object and v.dtype.kind not in "US":
             out[k] = torch.from_numpy(np.ascontiguousarray(v if v.dtype != np.float16 else v.astype(np.float32)))
         elif isinstance(v, dict):
-            out[k] = _to_tensor(v)
+            out[k] = to_tensor(v)
         else:
             out[k] = v
     return out
@@ -81,17 +82,20 @@ def checked_keys(keys, sequences: list[Sequence]) -> tuple[str, ...] | None:
     return keys
 
 
-class _Base:
+class TaskDataset:
+    """What every dataset of this package shares: an optional ``transform`` applied to each
+    sample, then (``as_tensor``) numeric arrays as torch tensors."""
+
     def __init__(self, transform: Callable | None, as_tensor: bool):
         self.transform, self.as_tensor = transform, as_tensor
 
     def _finish(self, sample: dict) -> dict:
         if self.transform is not None:
             sample = self.transform(sample)
-        return _to_tensor(sample) if self.as_tensor else sample
+        return to_tensor(sample) if self.as_tensor else sample
 
 
-class FrameDataset(_Base):
+class FrameDataset(TaskDataset):
     """Single frames (depth, normals, flow, segmentation, novel-view synthesis): each item is a
     dict with the frame's modalities (rgb, rgb_linear, depth, label, instance, normal, flow,
     backward_flow: those stored), K, pose, timestamp, scene (seed), trajectory, index.
@@ -132,7 +136,7 @@ class FrameDataset(_Base):
         return self._finish(sample)
 
 
-class ClipDataset(_Base):
+class ClipDataset(TaskDataset):
     """Clips of ``length`` consecutive frames (``stride`` apart) with their point tracks
     (tracking, optical / scene flow). Each item: ``frames`` (list of frame dicts with the
     modalities ``keys``, default all stored, and K, pose, timestamp), ``tracks``:
@@ -192,12 +196,12 @@ class ClipDataset(_Base):
                 xy[k], visible[k] = out["tracks"]["xy"], out["tracks"]["visible"]  # off the new image: not visible
             sample["frames"], sample["tracks"]["xy"] = new_frames, xy
         if self.as_tensor:
-            sample = _to_tensor({k: v for k, v in sample.items() if k != "frames"}) | {
-                "frames": [_to_tensor(f) for f in sample["frames"]]}
+            sample = to_tensor({k: v for k, v in sample.items() if k != "frames"}) | {
+                "frames": [to_tensor(f) for f in sample["frames"]]}
         return sample
 
 
-class PointCloudDataset(_Base):
+class PointCloudDataset(TaskDataset):
     """Labelled ground-truth point clouds (3D semantic segmentation), one item per scene:
     ``xyz`` (N, 3) float32 metres, ``label``, ``instance`` (N,) int32, ``dynamic`` (N,) bool.
     ``num_points``: a seeded random subset of that size per item (all points by default)."""

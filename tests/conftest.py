@@ -18,6 +18,17 @@ TINY = ["--scene-preset", "small", "--frames", "3", "--resolution", "48x32", "--
         "--scoring-density", "5"]
 
 
+# tests that use these fixtures launch the whole batch job (or a Ray cluster): marked
+# ``pipeline``; ``pytest -m "not pipeline"`` is the fast tier (docs/architecture.md, "Tests")
+PIPELINE_FIXTURES = {"finished", "seed_folder", "timeline_seed_folder", "cluster"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if PIPELINE_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.pipeline)
+
+
 def cpu_flags() -> set[str]:
     """The CPU's feature flags (/proc/cpuinfo), for tests that make this machine stand in for
     other CPUs: a stand-in can only be a CPU with no more than this one has."""
@@ -73,6 +84,15 @@ def plane_blend(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def walls_blend(tmp_path_factory):
+    """tests/scenes.py's walls scene (64x48 camera) as a .blend, built once for the
+    Simulator's and the visibility's tests."""
+    import scenes  # imports bpy: only when a test asks for the scene
+
+    return scenes.walls_scene(tmp_path_factory.mktemp("walls") / "walls.blend")
+
+
+@pytest.fixture(scope="session")
 def seed_folder(finished):
     """The seed folder of :func:`finished` (seed 4)."""
     return finished[0] / "seed_000004"
@@ -80,9 +100,10 @@ def seed_folder(finished):
 
 @pytest.fixture(scope="session")
 def timeline_seed_folder(tmp_path_factory):
-    """A real timeline seed of 2 stages (python -m generator --phases 2, seed 1, orbit only),
-    shared read-only by the tests of the readers and the write guard."""
+    """A real timeline seed of 3 stages (python -m generator --phases 3, seed 1, orbit only),
+    built once and shared read-only by the tests of the timeline, its readers, the viewer and
+    the write guard (a test that changes it works on a copy)."""
     out = tmp_path_factory.mktemp("timeline")
-    r = run_generator(out, "--seeds", "1", "--phases", "2", "--trajectory", "orbit")
+    r = run_generator(out, "--seeds", "1", "--phases", "3", "--trajectory", "orbit")
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     return out / "seed_000001"

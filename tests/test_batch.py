@@ -141,6 +141,7 @@ def test_same_seed_gives_identical_arrays(finished, tmp_path):
                 np.testing.assert_array_equal(fa[key], fb[key])
 
 
+@pytest.mark.pipeline
 def test_failed_seed_is_reported_and_others_finish(tmp_path):
     r = run(tmp_path, "--seeds", "5", "6", env_extra={"BUILDEE_FAIL_SEEDS": "5"})
     assert r.returncode == 1
@@ -162,6 +163,7 @@ print(child.pid, flush=True)  # and exit at once, without releasing: the child h
 """
 
 
+@pytest.mark.pipeline
 def test_an_attempt_waits_for_the_worker_of_an_earlier_one_before_touching_the_seed(tmp_path):
     """The worker of an earlier attempt that outlives the process that started it, holding the
     seed's work lock it inherited (as a Ray task's worker does for 1-3 s after its driver is
@@ -211,6 +213,7 @@ except SystemExit:  # a process that lives on after its task ended: its worker m
 """
 
 
+@pytest.mark.pipeline
 def test_a_seed_ended_by_sigterm_leaves_no_worker_behind_its_work_lock(tmp_path):
     """produce_seed stopped by an exception (Ray turns SIGTERM into SystemExit) kills its worker
     process before it lets go of the seed's work lock, so no worker writes on unprotected."""
@@ -242,6 +245,7 @@ def _is_worker_of(proc_dir: Path, out: Path) -> bool:
     return argv[1:3] == ["-m", "generator.batch.worker"] and len(argv) > 5 and argv[5].startswith(f"{out}/")
 
 
+@pytest.mark.pipeline
 def test_killed_run_resumes(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "OCIO"}
     args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--frames", "12", "--seeds", "8", "9"]
@@ -284,6 +288,7 @@ def test_a_worker_whose_runner_died_during_its_start_up_exits_before_working(tmp
     assert child.returncode == 1 and '"event": "error"' in child.stdout
 
 
+@pytest.mark.pipeline
 def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(tmp_path):
     """A 240 m fly-through (800 frames) fits nowhere on small seed 3: the seed fails with the
     planner's one-line error before the orbit, planned and flown first, renders anything

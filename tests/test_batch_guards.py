@@ -51,6 +51,7 @@ def _copy_seed(finished, dst: Path) -> Path:
     return dst
 
 
+@pytest.mark.pipeline
 def test_ctrl_c_while_waiting_for_the_work_lock_is_prompt_and_keeps_a_users_partial_folder(tmp_path):
     """A seed waiting for its work lock (held here by another process) is cancelled at once by
     Ctrl-C, and a `.seed_N.partial` without our marker (the user's) is left alone; the run
@@ -164,6 +165,7 @@ def _fake_seed(out: Path, seed: int, config: dict) -> None:
     write_manifest(folder, {"format_version": FORMAT_VERSION, "seed": seed, "config": config, "summary": {}})
 
 
+@pytest.mark.pipeline
 def test_reordered_outputs_are_the_same_parameters(tmp_path):
     """--outputs depth,rgb and rgb,depth write the same seed (modalities go in table order):
     the config stores them in table order, and a manifest of an older run that stored them

@@ -253,6 +253,7 @@ def test_as_tensor_needs_torch_or_gives_tensors(seed_folder):
     assert isinstance(item["rgb"], torch.Tensor) and item["rgb"].dtype == torch.float32
 
 
+@pytest.mark.pipeline
 def test_annotations_of_a_seed_made_without_instances(tmp_path):
     """coco.json and boxes3d.json are written only with the instance output: asking such a
     seed for annotations says so (not 'damaged, regenerate' with the same options)."""

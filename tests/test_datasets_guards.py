@@ -21,19 +21,19 @@ from exporters.modalities import MODALITIES
 
 @pytest.fixture(scope="module")
 def timeline(timeline_seed_folder):
-    """A real timeline seed of 2 stages (python -m generator --phases 2), orbit only (conftest)."""
+    """A real timeline seed of 3 stages (python -m generator --phases 3), orbit only (conftest)."""
     return timeline_seed_folder
 
 
 def test_a_stage_is_indexed_like_python(timeline):
     tl = Timeline(timeline)
     last = tl.sequence(-1, "orbit")
-    assert last.folder == timeline / "phase_1" / "orbit" and last is tl.sequence(1, "orbit")
-    written = FrameReader(timeline / "phase_1" / "orbit").read(0, ["depth"])
+    assert last.folder == timeline / "phase_2" / "orbit" and last is tl.sequence(2, "orbit")
+    written = FrameReader(timeline / "phase_2" / "orbit").read(0, ["depth"])
     np.testing.assert_array_equal(last[0].depth, written["depth"])
-    assert tl.sequence(-2, "orbit").folder == timeline / "phase_0" / "orbit"
-    with pytest.raises(IndexError, match=r"^stage index -3 out of range: valid indices are -2\.\.1$"):
-        tl.sequence(-3, "orbit")
+    assert tl.sequence(-3, "orbit").folder == timeline / "phase_0" / "orbit"
+    with pytest.raises(IndexError, match=r"^stage index -4 out of range: valid indices are -3\.\.2$"):
+        tl.sequence(-4, "orbit")
 
 
 def test_a_damaged_or_missing_label_table_is_one_line(timeline, tmp_path):
@@ -59,7 +59,7 @@ def test_a_damaged_or_missing_label_table_is_one_line(timeline, tmp_path):
 def test_change_pairs_check_keys_and_trajectories_when_made(timeline):
     everything = ChangePairDataset(timeline)
     one = ChangePairDataset(timeline, trajectories="orbit", keys="depth")
-    assert len(one) == len(everything) == 3
+    assert len(one) == len(everything) == 2 * 3  # pairs (0, 1) and (1, 2), 3 frames each
     item = one[-1]
     assert set(item["before"]) & set(MODALITIES) == set(item["after"]) & set(MODALITIES) == {"depth"}
     np.testing.assert_array_equal(item["after"]["depth"], everything[-1]["after"]["depth"])

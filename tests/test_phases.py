@@ -23,11 +23,11 @@ TOL = 0.01  # docs/phases.md: point and depth tolerances
 
 
 @pytest.fixture(scope="module")
-def timeline(tmp_path_factory):
-    out = tmp_path_factory.mktemp("phases")
-    r = run_generator(out, "--seeds", str(SEED), "--phases", str(STAGES), "--trajectory", "orbit")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    seed = out / f"seed_{SEED:06d}"
+def timeline(timeline_seed_folder):
+    """The session's timeline seed (conftest: seed SEED, STAGES stages, orbit only), its
+    changes and each stage's ground truth."""
+    seed = timeline_seed_folder
+    assert seed.name == f"seed_{SEED:06d}"
     return seed, read_changes(seed), [read_ground_truth(seed / f"phase_{k}") for k in range(STAGES)]
 
 

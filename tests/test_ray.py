@@ -194,6 +194,7 @@ def test_without_an_address_a_local_ray_is_started_and_stopped(finished, tmp_pat
         subprocess.run(["rm", "-rf", str(temp)])
 
 
+@pytest.mark.pipeline
 def test_local_ray_without_a_node_big_enough_is_exit_2(tmp_path):
     """No node can join the Ray a run starts for itself: --cpus-per-seed above its CPUs is a
     one-line error, not a wait that never ends (it was a warning, then a wait)."""

@@ -197,6 +197,7 @@ def test_verify_bad_input_and_clean(tmp_path, finished):
         assert v.returncode == 2 and says in v.stderr and len(v.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.pipeline
 def test_two_runs_of_one_seed_end_with_one_complete_seed(tmp_path):
     """Two identical runs started together (both --wait), and a third one started while
     the seed is being written (no --wait): one renders and commits, the second waits and
@@ -218,6 +219,7 @@ def test_two_runs_of_one_seed_end_with_one_complete_seed(tmp_path):
     assert not list(tmp_path.glob(".seed_*"))
 
 
+@pytest.mark.pipeline
 def test_terminated_run_removes_what_it_started(tmp_path):
     """SIGTERM (a scheduler's polite kill) cleans up like Ctrl-C: the seed in progress is
     removed, its lock is gone, nothing is marked complete."""

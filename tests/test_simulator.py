@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def walls(tmp_path_factory):
-    return scenes.walls_scene(tmp_path_factory.mktemp("sim") / "walls.blend")
+def walls(walls_blend):
+    return walls_blend
 
 
 # ---- loading and labels -------------------------------------------------------------------

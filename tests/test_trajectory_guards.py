@@ -71,6 +71,7 @@ def test_deliveries_that_find_no_spot_are_counted():
     assert counts[0] == 0 and counts == sorted(counts) and counts[-1] >= 1, counts
 
 
+@pytest.mark.pipeline
 def test_a_timeline_without_rgb_makes_its_preview_from_another_image(tmp_path):
     r = run_generator(tmp_path, "--seeds", "5", "--phases", "2", "--trajectory", "orbit", "--outputs", "depth,instance")
     assert r.returncode == 0, r.stderr[-2000:]

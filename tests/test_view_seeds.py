@@ -4,6 +4,8 @@ timeline seed (--phases)."""
 
 import numpy as np
 import pytest
+
+pytestmark = pytest.mark.pipeline  # every test views a seed made by the batch job
 from rerun.chunk import RrdReader
 
 from conftest import ROOT, run_generator
@@ -48,19 +50,17 @@ def test_a_seed_with_some_outputs_is_viewed(partial_seed, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def timeline_seed(tmp_path_factory):
-    out = tmp_path_factory.mktemp("timeline")
-    r = run_generator(out, "--seeds", "5", "--trajectory", "orbit", "--phases", "2", "--outputs", "rgb,depth,instance")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return out / "seed_000005"
+def timeline_seed(timeline_seed_folder):
+    """The session's timeline seed (conftest: seed 1, 3 stages, orbit only)."""
+    return timeline_seed_folder
 
 
 def test_one_stage_of_a_timeline_is_viewed(timeline_seed, tmp_path):
     r = view(timeline_seed / "phase_1", cwd=tmp_path, env=STRICT | {"PYTHONPATH": str(ROOT)})  # default --out: here
     assert r.returncode == 0, r.stderr[-2000:]
-    assert r.stdout.strip() == "seed_000005_phase_1.rrd"  # the default name says which stage
-    out = tmp_path / "seed_000005_phase_1.rrd"
-    assert [s.recording_id for s in RrdReader(out).recordings()] == ["seed_000005_phase_1"]
+    assert r.stdout.strip() == "seed_000001_phase_1.rrd"  # the default name says which stage
+    out = tmp_path / "seed_000001_phase_1.rrd"
+    assert [s.recording_id for s in RrdReader(out).recordings()] == ["seed_000001_phase_1"]
     rec = read_rrd(out)
     stage = {k: read_ply(timeline_seed / f"phase_{k}" / "ground_truth" / "points.ply").vertex for k in (0, 1)}
     xyz = {k: np.stack([v[c] for c in "xyz"], 1) for k, v in stage.items()}
@@ -79,5 +79,5 @@ def test_one_stage_of_a_timeline_is_viewed(timeline_seed, tmp_path):
 def test_a_timeline_seed_folder_names_the_stage_to_view(timeline_seed, tmp_path):
     r = view(timeline_seed, "--out", tmp_path / "x.rrd")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
-    assert f"python -m datasets.view {timeline_seed / 'phase_K'} (K = 0 to 1)" in r.stderr
+    assert f"python -m datasets.view {timeline_seed / 'phase_K'} (K = 0 to 2)" in r.stderr
     assert not (tmp_path / "x.rrd").exists()

@@ -15,8 +15,8 @@ from generator.geometry.visibility import ViewLimits, VisibilityStats, visible_p
 
 
 @pytest.fixture(scope="module")
-def walls(tmp_path_factory):
-    return scenes.walls_scene(tmp_path_factory.mktemp("vis") / "walls.blend")
+def walls(walls_blend):
+    return walls_blend
 
 
 def _visibility_of(sim, points):

@@ -39,8 +39,12 @@ def stage_pred(timeline_seed_folder, tmp_path_factory):
 
 def test_evaluation_never_writes_into_a_timeline_seed(timeline_seed_folder, seed_folder, stage_pred, tmp_path):
     """The issue's case 1 and its variants: over changes.h5 or a manifest, a new file at the
-    seed's top, in a stage, in another seed, in a folder being generated; every output flag."""
-    seed = timeline_seed_folder
+    seed's top, in a stage, in another seed, in a folder being generated; every output flag.
+    On copies of the shared seeds (code that failed this test would damage them)."""
+    seed, plain = tmp_path / "timeline" / timeline_seed_folder.name, tmp_path / "plain" / seed_folder.name
+    shutil.copytree(timeline_seed_folder, seed)
+    shutil.copytree(seed_folder, plain)
+    seed_folder = plain
     partial = tmp_path / ".seed_000009.partial"
     partial.mkdir()
     (partial / PARTIAL_MARKER).write_text("")

@@ -3,7 +3,6 @@ context, and a file written whole or not at all."""
 
 from __future__ import annotations
 
-import errno
 import math
 import os
 from contextlib import contextmanager
@@ -57,40 +56,39 @@ def quiet_rerun() -> None:
     os.environ.setdefault("RUST_LOG", "off")
 
 
-def _unwritable(tmp: Path, why: str) -> OSError:
-    """The OSError for a recording Rerun could not write whole, saying a full disk when it is one."""
-    try:
-        full = os.statvfs(tmp.parent).f_bavail * os.statvfs(tmp.parent).f_frsize < (1 << 20)
-    except OSError:
-        full = False
-    return OSError(errno.ENOSPC if full else errno.EIO, "no space left on the device" if full else
-                   f"Rerun could not write it whole: {why}", str(tmp))
-
-
 @contextmanager
 def recording_file(path: str | Path, recording_id: str, blueprint=None):
-    """A RecordingStream saving to ``path`` (with ``blueprint`` as the default layout): written
-    under a temporary name beside it and renamed when everything is logged and the file ends
-    with Rerun's footer, so an interrupted run or a full disk leaves no half-written .rrd (a
-    write failure is an OSError naming the file)."""
+    """A RecordingStream whose recording is written to ``path`` (with ``blueprint`` as the
+    default layout) when everything is logged: Rerun encodes it in memory (about 120 MB for a
+    default seed) and this process writes it, through a temporary file renamed into place, so
+    an interrupted run or a full disk leaves no half-written .rrd and a write failure is an
+    OSError naming the file. (Rerun's own file sink can block forever when the disk refuses
+    its first bytes, and reports a failure only as a RuntimeError on flush.)"""
     import rerun as rr
-    from rerun_bindings import check_for_rrd_footer
 
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-    rec.save(tmp, default_blueprint=blueprint)
+    memory = rec.memory_recording()
+    if blueprint is not None:
+        rec.send_blueprint(blueprint, make_active=False, make_default=True)
     try:
         yield rec
-        try:
-            rec.flush()
-        except RuntimeError as exc:  # Rerun's file writer stopped (e.g. no space left)
-            raise _unwritable(tmp, str(exc)) from None
+        rec.flush()
+        data = memory.drain_as_bytes()
+    finally:
         rec.disconnect()
-        if not check_for_rrd_footer(str(tmp)):
-            raise _unwritable(tmp, "the file ends without Rerun's footer")
+    write_whole(path, data)
+
+
+def write_whole(path: Path, data: bytes) -> None:
+    """``data`` written to ``path`` through a temporary file beside it, renamed into place
+    once whole; the temporary file is removed whatever fails (a full disk: OSError ENOSPC)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
         os.replace(tmp, path)
     finally:
-        if tmp.exists():
-            rec.disconnect()
-            tmp.unlink()
+        tmp.unlink(missing_ok=True)
