@@ -1,5 +1,5 @@
 """Every modality of the current view, by name (exporters/modalities.py), from the Simulator's
-public API: one Blender render for the ``render`` modalities, one pixel-centre ray cast
+public API: one Blender render for the ``render`` modalities (with their passes), one pixel-centre ray cast
 (``render(engine="raycast")``) for the ``geometry`` ones (normals, optical flow, ...), which
 the render's depth, labels and ids share (generator/geometry/pixel_truth.py)."""
 
@@ -60,13 +60,15 @@ def check_trajectory(poses, object_matrices, index, dynamic: int) -> tuple[np.nd
 
 def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int = 0) -> RenderOutput:
     """A :class:`RenderOutput` holding the modalities ``names`` (default: all registered) of
-    the current view; Blender renders only if a ``render`` modality is asked for."""
+    the current view; Blender renders only if a ``render`` modality is asked for, with the
+    passes of those asked for (and of the ones every render holds)."""
     names = resolve(names)
     computed = [n for n in names if MODALITIES[n].source == "geometry"]
+    rendered = [n for n in names if MODALITIES[n].source == "render"]
     # the pixel-centre cast first: render()'s depth, labels and ids reuse it (same pose and frame)
     g = pixel_geometry(sim, poses, object_matrices, index) if computed else None
-    if any(MODALITIES[n].source == "render" for n in names):
-        out = sim.render()
+    if rendered:
+        out = sim.render(outputs=rendered)
     else:
         out = RenderOutput(None, None, None, None, None, sim.K.copy(), sim.get_world_from_camera(), sim.frame)
     out.extra.update({n: MODALITIES[n].compute(g) for n in computed})

@@ -1,36 +1,28 @@
 """Decode Blender's render passes into the simulator's outputs (bpy-free).
 
-Blender writes one multilayer EXR per render (linear RGB, planar depth, object index and
-Cryptomatte object coverage) and, through the compositor, a 16-bit TIFF of the
-display-referred RGB. This module reads both and turns them into ``rgb``, ``depth``,
-``seg`` and ``instance`` arrays. The Cryptomatte manifest Blender writes in the EXR header
-is not read (it is not valid JSON for names with quotes, backslashes or control
+Blender writes one multilayer EXR per render (the passes the requested modalities declare:
+exporters/modalities.py, ``BlenderPass``) and, through the compositor, a 16-bit TIFF of the
+display-referred RGB. This module reads both into channels, decodes each pass by its own
+declaration (:func:`decode_passes`), and holds what turns the object-index and Cryptomatte
+passes into labels and instance ids. The Cryptomatte manifest Blender writes in the EXR
+header is not read (it is not valid JSON for names with quotes, backslashes or control
 characters): an object's Cryptomatte id is computed from its name (:func:`cryptomatte_id`).
 """
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable
 
 import numpy as np
 
-BLENDER_NO_SURFACE = 1e10  # what Blender writes in the Depth pass where there is no surface
+from exporters.modalities import BlenderPass
+
 LABEL_COVERAGE_EPS = 1e-6
-
-
-@dataclass
-class RawPasses:
-    """Arrays read back from one Blender render (H, W first)."""
-
-    rgb_linear: np.ndarray  # (H, W, 3) float32, scene-referred
-    alpha: np.ndarray  # (H, W) float32
-    depth: np.ndarray  # (H, W) float32, planar z in metres, inf where no surface
-    object_index: np.ndarray | None  # (H, W) int32 pass index at the pixel centre, 0 = none
-    crypto_ids: np.ndarray | None  # (R, H, W) uint32 Cryptomatte hashes, best rank first
-    crypto_coverage: np.ndarray | None  # (R, H, W) float32 coverage of each rank
-    rgb_display: np.ndarray | None = None  # (H, W, 3) float32 in [0, 1], view transform applied
+# modality name -> RenderOutput field: what every Simulator.render() holds (the paper's
+# ``(rgb, depth, seg)``, ``instance`` and ``rgb_linear``); other modalities go to ``extra``
+FIELD_OF_MODALITY = {"rgb": "rgb", "rgb_linear": "rgb_linear", "depth": "depth", "label": "seg", "instance": "instance"}
 
 
 @dataclass
@@ -46,7 +38,8 @@ class RenderOutput:
     instance: (H, W) int32 object ids (index into ``Simulator.object_names``), -1 = none.
     rgb_linear: (H, W, 3) float32 scene-referred linear RGB (HDR).
     K, world_from_camera, frame: the camera and time the image was rendered with.
-    extra: further modalities by name (e.g. ``normal``, ``flow``) when they were asked for.
+    extra: further modalities by name when they were asked for: from the geometry (``normal``,
+        ``flow``: ``render_outputs``) or from further Blender passes (``render(outputs=...)``).
     """
 
     rgb: np.ndarray
@@ -59,11 +52,19 @@ class RenderOutput:
     frame: int
     extra: dict = field(default_factory=dict)
 
+    @classmethod
+    def of(cls, arrays: dict[str, np.ndarray], K: np.ndarray, world_from_camera: np.ndarray,
+           frame: int) -> "RenderOutput":
+        """The output holding ``arrays`` (modality name -> array): the modalities of
+        :data:`FIELD_OF_MODALITY` in their fields (None where absent), the others in ``extra``."""
+        fields = {f: arrays.get(m) for m, f in FIELD_OF_MODALITY.items()}
+        extra = {n: a for n, a in arrays.items() if n not in FIELD_OF_MODALITY}
+        return cls(**fields, K=K, world_from_camera=world_from_camera, frame=frame, extra=extra)
+
     @property
     def outputs(self) -> dict[str, np.ndarray]:
         """Modality name -> array, for every modality this render holds."""
-        base = {"rgb": self.rgb, "rgb_linear": self.rgb_linear, "depth": self.depth, "label": self.seg,
-                "instance": self.instance}
+        base = {m: getattr(self, f) for m, f in FIELD_OF_MODALITY.items()}
         return {k: v for k, v in base.items() if v is not None} | dict(self.extra)
 
     def __iter__(self):
@@ -122,8 +123,9 @@ def cryptomatte_pixel_id(name_hash: int) -> int:
     return (name_hash & 0x807FFFFF) | (exponent << 23)
 
 
-def read_blender_exr(path: str | Path) -> RawPasses:
-    """Read the multilayer EXR that Blender wrote for a render (all parts)."""
+def read_blender_exr(path: str | Path) -> dict[str, np.ndarray]:
+    """Every channel (full name, e.g. ``ViewLayer.Depth.Z`` -> (H, W) array) of the multilayer
+    EXR that Blender wrote for a render (all parts)."""
     import OpenEXR
 
     from exporters.exr import use_all_cores
@@ -135,57 +137,44 @@ def read_blender_exr(path: str | Path) -> RawPasses:
         for part in f.parts:
             for name, ch in part.channels.items():
                 channels[name] = ch.pixels
-
-    def find(suffix: str):
-        hits = [k for k in channels if k.endswith(suffix)]
-        return channels[hits[0]] if hits else None
-
-    rgb = np.stack([find(".Combined.R"), find(".Combined.G"), find(".Combined.B")], axis=-1).astype(np.float32)
-    alpha = find(".Combined.A")
-    depth = find(".Depth.Z").astype(np.float32)
-    depth = np.where(depth >= BLENDER_NO_SURFACE * 0.999, np.float32(np.inf), depth)
-    index = find(".IndexOB.X")
-    if index is None:
-        index = find(".Object Index.X")
-    crypto_layers = sorted(
-        {m.group(1) for k in channels if (m := re.search(r"(CryptoObject\d\d)\.[rgba]$", k))}
-    )
-    ids, cov = [], []
-    for layer in crypto_layers:
-        r, g, b, a = (find(f"{layer}.{c}") for c in "rgba")
-        ids += [np.ascontiguousarray(r, dtype=np.float32).view(np.uint32), np.ascontiguousarray(b, dtype=np.float32).view(np.uint32)]
-        cov += [g.astype(np.float32), a.astype(np.float32)]
-    return RawPasses(
-        rgb_linear=rgb,
-        alpha=alpha.astype(np.float32) if alpha is not None else np.ones(depth.shape, np.float32),
-        depth=depth,
-        object_index=np.rint(index).astype(np.int32) if index is not None else None,
-        crypto_ids=np.stack(ids) if ids else None,
-        crypto_coverage=np.stack(cov) if cov else None,
-    )
+    return channels
 
 
-def read_display_tiff(path: str | Path) -> np.ndarray:
-    """Display-referred RGB (H, W, 3) float32 in [0, 1] from Blender's 16-bit TIFF."""
+def read_display_tiff(path: str | Path) -> dict[str, np.ndarray]:
+    """The channels ``Display.R``, ``.G``, ``.B`` ((H, W) uint16) of Blender's 16-bit TIFF of the
+    display-referred image (the ``Display`` pass of exporters/modalities.py)."""
     import tifffile
 
     data = tifffile.imread(str(path))
-    if data.dtype != np.uint16:
-        raise ValueError(f"expected a 16-bit TIFF from Blender, got {data.dtype}")
-    return (data[..., :3].astype(np.float32) / np.float32(65535.0)).astype(np.float32)
+    return {f"Display.{c}": data[..., k] for k, c in enumerate("RGB")}
 
 
-def label_coverage(raw: RawPasses, hash_to_label: dict[int, int], seg: np.ndarray) -> np.ndarray:
+def decode_passes(channels: dict[str, np.ndarray], passes: Iterable[BlenderPass]) -> dict[str, object]:
+    """Pass name -> decoded value of each of ``passes``, None for a pass whose channels the
+    render does not hold (an engine without it). A channel ``<layer>.<channel>`` is found
+    under any view layer's name (``ViewLayer.Depth.Z``), the first one if several."""
+    decoded = {}
+    for p in passes:
+        found = {}
+        for c in p.channels:
+            hits = [k for k in channels if k == c or k.endswith("." + c)]
+            if hits:
+                found[c] = channels[hits[0]]
+        decoded[p.name] = p.decode(found) if len(found) == len(p.channels) else None
+    return decoded
+
+
+def label_coverage(crypto: tuple[np.ndarray, np.ndarray], hash_to_label: dict[int, int],
+                   seg: np.ndarray) -> np.ndarray:
     """Share (H, W) of each pixel's antialiased footprint covered by objects carrying the
-    label ``seg`` holds at that pixel (from the Cryptomatte object ranks)."""
-    if raw.crypto_ids is None:
-        raise ValueError("this render has no Cryptomatte object pass; segmentation_sensitivity needs it")
+    label ``seg`` holds at that pixel, from the Cryptomatte object ranks ``crypto`` = (ids,
+    coverage), each (R, H, W) (exporters/modalities.py, ``CRYPTO_OBJECT``)."""
     keys = np.fromiter(hash_to_label.keys(), dtype=np.uint32, count=len(hash_to_label))
     vals = np.fromiter(hash_to_label.values(), dtype=np.int32, count=len(hash_to_label))
     order = np.argsort(keys)
     keys, vals = keys[order], vals[order]
     total = np.zeros(seg.shape, dtype=np.float32)
-    for ids, cov in zip(raw.crypto_ids, raw.crypto_coverage):
+    for ids, cov in zip(*crypto):
         pos = np.clip(np.searchsorted(keys, ids), 0, max(len(keys) - 1, 0))
         label = np.where((len(keys) > 0) & (keys[pos] == ids), vals[pos], -2) if len(keys) else np.full(ids.shape, -2)
         total += np.where(label == seg, cov, 0.0).astype(np.float32)

@@ -24,7 +24,6 @@ DENOISE_PREFILTERS = ("NONE", "FAST", "ACCURATE")
 DENOISE_QUALITIES = ("HIGH", "BALANCED", "FAST")
 NO_GPU_MESSAGE = ("device 'gpu' asked for, but Cycles finds no CUDA or OptiX GPU on this machine; use device "
                   "'cpu' or 'auto' (auto renders on a GPU when there is one, else on the CPU)")
-CRYPTOMATTE_LEVELS = 4  # objects ranked per pixel (two EXR layers)
 
 
 @dataclass(frozen=True)

@@ -431,14 +431,15 @@ class Simulator(CameraMoves, PaperAPI):
 
         return render_outputs(self, names, poses, object_matrices, index)
 
-    def render(self, engine: str | None = None) -> RenderOutput:
+    def render(self, engine: str | None = None, outputs=()) -> RenderOutput:
         """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
 
         See :class:`generator.passes.RenderOutput` for shapes, units and conventions; the
         returned object also holds ``instance`` and ``rgb_linear``. Depth, labels and ids come
         from ``ground_truth`` (default: ray casting the scene's triangles at the pixel centres,
         the same on every device); colour from Blender. ``engine="raycast"`` returns
-        :meth:`render_geometry` instead (no Blender render, no RGB).
+        :meth:`render_geometry` instead (no Blender render, no RGB). ``outputs``: further
+        ``render`` modalities (exporters/modalities.py) to render, by name, into ``out.extra``.
         """
         if engine == "raycast":
             return self.render_geometry()
@@ -446,7 +447,7 @@ class Simulator(CameraMoves, PaperAPI):
             raise ValueError(f"engine must be None (the scene's Blender engine) or 'raycast', got {engine!r}")
         self._check_current()
         out = self._views.render(self._camera_model(), self._world_from_camera, self.frame,
-                                 self.segmentation_sensitivity, self.ground_truth)
+                                 self.segmentation_sensitivity, self.ground_truth, outputs)
         self.last_render_timings = dict(self._views.last_timings)
         return out
 

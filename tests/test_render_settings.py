@@ -16,6 +16,7 @@ import pytest
 
 import scenes
 from exporters.exr import write_frame_exr
+from exporters.modalities import COMBINED
 from generator import Simulator
 from generator.blender import egl
 from generator.blender.render import Renderer, resolve_settings
@@ -244,15 +245,15 @@ def test_work_alongside_runs_during_the_render_and_raises_its_errors(plane_blend
     handlers = list(bpy.app.handlers.render_pre)
     bpy.app.handlers.render_post.append(post)
     try:
-        raw = renderer.render(alongside=lambda: marks.setdefault("alongside", time.perf_counter()))
-        assert raw.rgb_linear.shape == (12, 16, 3)
+        raw = renderer.render([COMBINED], alongside=lambda: marks.setdefault("alongside", time.perf_counter()))
+        assert raw["Combined"].shape == (12, 16, 3)
         assert marks["alongside"] < marks["render_post"]  # began while Blender was rendering
 
         def failing():
             raise ValueError("simulated failure beside the render")
 
         with pytest.raises(ValueError, match="simulated failure"):
-            renderer.render(alongside=failing)
+            renderer.render([COMBINED], alongside=failing)
         assert os.listdir(renderer.tmpdir) == []
         assert list(bpy.app.handlers.render_pre) == handlers
     finally:

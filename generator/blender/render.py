@@ -1,8 +1,9 @@
-"""Rendering with Blender: settings and presets, the passes we need, private temporary files.
+"""Rendering with Blender: settings and presets, the passes asked for, private temporary files.
 
 One call to :meth:`Renderer.render` runs one Blender render that writes
-- a multilayer EXR (float32, uncompressed) with linear RGB, planar depth, the object index
-  and Cryptomatte object coverage, and
+- a multilayer EXR (float32, uncompressed) with the Combined pass (linear RGB) and the
+  passes it is given (exporters/modalities.py ``BlenderPass``: switched on by their
+  ``switches`` and ``settings``, decoded by their ``decode``), and
 - through the compositor, a 16-bit TIFF of the display-referred RGB (Blender's own view
   transform applied),
 into a private temporary folder (on /dev/shm when it exists) that is emptied after every
@@ -18,13 +19,15 @@ import tempfile
 import threading
 import time
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 
 import bpy
 
-from ..passes import RawPasses, read_blender_exr, read_display_tiff
-from ..render_settings import CRYPTOMATTE_LEVELS, ENGINES, PRESETS, RenderSettings, resolve_settings  # noqa: F401
+from exporters.modalities import BlenderPass
+
+from ..passes import decode_passes, read_blender_exr, read_display_tiff
+from ..render_settings import ENGINES, PRESETS, RenderSettings, resolve_settings  # noqa: F401
 from . import devices, session
 from .devices import DeviceUnavailableError  # noqa: F401
 from .egl import require_gpu_context
@@ -101,8 +104,28 @@ def _render_with(alongside: Callable[[], object] | None) -> None:
         job.result()
 
 
+def switch_passes(on: Iterable[BlenderPass], off: Iterable[BlenderPass]) -> None:
+    """Switch the passes ``on`` on (with their settings) and ``off`` off, in every view layer of
+    the open scene; a property already at its value is not written (no needless update)."""
+    wanted = [(p, path, True) for p in on for path in p.switches] + [
+        (p, path, value) for p in on for path, value in p.settings.items()]
+    wanted += [(p, path, False) for p in off for path in p.switches]
+    for vl in bpy.context.scene.view_layers:
+        for p, path, value in wanted:
+            *groups, name = path.split(".")
+            owner = vl
+            try:
+                for g in groups:
+                    owner = getattr(owner, g)
+                if getattr(owner, name) != value:
+                    setattr(owner, name, value)
+            except (AttributeError, TypeError) as e:
+                raise ValueError(f"Blender pass {p.name!r}: cannot set view-layer property {path!r} to {value!r} "
+                                 f"({e}); fix its declaration (exporters/modalities.py BlenderPass)") from None
+
+
 class Renderer:
-    """Renders the open scene into :class:`RawPasses`, one Blender render per call."""
+    """Renders the open scene, one Blender render per call, into decoded passes."""
 
     def __init__(self):
         base = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
@@ -130,10 +153,6 @@ class Renderer:
         r.filepath = os.path.join(self.tmpdir, "passes.exr")
         r.use_file_extension = True
         for vl in scene.view_layers:
-            vl.use_pass_z = True
-            vl.use_pass_object_index = True
-            vl.use_pass_cryptomatte_object = True
-            vl.pass_cryptomatte_depth = CRYPTOMATTE_LEVELS
             vl.cycles.denoising_store_passes = False
         tree = bpy.data.node_groups.new("buildee-outputs", "CompositorNodeTree")
         scene.compositing_node_group = tree
@@ -150,16 +169,22 @@ class Renderer:
         out.file_output_items.new("RGBA", "Image")
         tree.links.new(layers.outputs["Image"], out.inputs[0])
 
-    def render(self, alongside: Callable[[], object] | None = None) -> RawPasses:
-        """One Blender render; returns its passes. Temporary files never outlive the call.
+    def render(self, passes: Iterable[BlenderPass], alongside: Callable[[], object] | None = None,
+               off: Iterable[BlenderPass] = ()) -> dict[str, object]:
+        """One Blender render with ``passes`` switched on and ``off`` switched off; returns pass
+        name -> decoded value of each of ``passes`` (None: the engine wrote no such pass).
+        Temporary files never outlive the call.
 
         ``alongside`` (optional) runs in a thread once Blender has started rendering (which
         releases Python's GIL), so CPU work that holds the GIL overlaps the render; it has
         finished, and its exception is raised, before this returns."""
+        passes = list(passes)
         require_gpu_context(bpy.context.scene.render.engine)
         devices.select(None)  # a file opened since the last settings renders on the CPU unless told
         bpy.context.scene.render.use_border = False  # the ground truth and K describe the whole frame
         try:
+            with session.quiet():
+                switch_passes(passes, off)
             t0 = time.perf_counter()
             with session.quiet():
                 _render_with(alongside)
@@ -168,10 +193,9 @@ class Renderer:
             tif = glob.glob(os.path.join(self.tmpdir, "display*.tif*"))
             if not exr or not tif:
                 raise RuntimeError(f"Blender wrote no render output (see its log: {session.log_path()})")
-            raw = read_blender_exr(exr[0])
-            raw.rgb_display = read_display_tiff(tif[0])
+            decoded = decode_passes(read_blender_exr(exr[0]) | read_display_tiff(tif[0]), passes)
             self.last_timings = {"blender_render_and_write": t1 - t0, "read_passes": time.perf_counter() - t1}
-            return raw
+            return decoded
         finally:
             for name in os.listdir(self.tmpdir):
                 try:
