@@ -10,7 +10,8 @@ each image of its track and the keypoint there; rounding only, ~1e-14 px, since 
 are exact projections). Dynamic points never enter the model.
 
 :func:`read_colmap_model` reads a model back for scoring, refusing damaged files and
-degenerate cameras.
+degenerate cameras. The ``colmap`` sink (:class:`ColmapSink`) writes the model of each
+trajectory, and ``points3D.ply`` beside it; ``--colmap-text`` adds the model as text.
 """
 
 from __future__ import annotations
@@ -19,9 +20,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pycolmap
 
-from generator.geometry.camera import invert_rigid
+from generator.cli_args import Option
+from generator.geometry.camera import invert_rigid, project
+
+from . import FORMAT_VERSION
+from .frames import frame_names
+from .nerfstudio import POINTS_PLY
+from .ply import write_ply
+from .sinks import FrameRecord, TrajectoryContext, register_sink
+
+PLY_FORMAT_COMMENT = "buildee format"  # points3D.ply's header comment, followed by the format version
+UNCOLOURED = (128, 128, 128)  # COLMAP point colour when no rgb is written
 
 
 def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: int, poses: np.ndarray,
@@ -30,6 +40,8 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
     """Write ``folder`` (binary cameras.bin, images.bin, points3D.bin, rig and frame files;
     plus .txt with ``text``). ``observations[t]`` = (point indices (n,), pixel xy (n, 2)) of
     frame t; ``points`` (N, 3) world metres; ``colors`` (N, 3) uint8."""
+    import pycolmap  # here, not at the top: the scan of exporters/ imports this module into every run's driver
+
     rec = pycolmap.Reconstruction()
     camera = pycolmap.Camera(model="PINHOLE", width=int(width), height=int(height),
                              params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]], camera_id=1)
@@ -53,6 +65,53 @@ def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: in
     if text:
         rec.write_text(str(folder))
     return rec
+
+
+@register_sink("colmap", options=(Option("--colmap-text", "also write the COLMAP models as text (.txt)",
+                                          action="store_true", default=False),))
+class ColmapSink:
+    """``sparse/0`` (COLMAP model: exact poses, keypoints at the projections of the visible
+    static points, 3D points seen in at least two frames, coloured from the display PNG where
+    first seen; also as text with ``--colmap-text``) and ``points3D.ply`` (those 3D points with
+    their colours, for splatting trainers: transforms.json's ``ply_file_path``)."""
+
+    def __init__(self, context: TrajectoryContext):
+        self.context = context
+        n = len(context.point_table["local"])
+        self.static = np.asarray(context.point_table["dynamic_object"]) < 0
+        self.colors = np.tile(np.array(UNCOLOURED, np.uint8), (n, 1))
+        self.coloured = np.zeros(n, bool)
+        self.observations: list[tuple[np.ndarray, np.ndarray]] = []
+        self.points = None
+
+    def add_frame(self, frame: FrameRecord) -> None:
+        c = self.context
+        seen = np.flatnonzero(frame.visible & self.static)
+        uv, _ = project(frame.points[seen], frame.world_from_camera, c.K)
+        self.observations.append((seen, uv))
+        if "rgb" in frame.outputs:
+            new = ~self.coloured[seen]
+            rgb8 = (np.clip(frame.outputs["rgb"], 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)  # the PNG's pixels
+            px = np.minimum(np.floor(uv[new]).astype(int), [c.width - 1, c.height - 1])
+            self.colors[seen[new]] = rgb8[px[:, 1], px[:, 0]]
+            self.coloured[seen[new]] = True
+        self.points = frame.points  # static points never move: any frame's positions are theirs
+
+    def close(self) -> None:
+        c = self.context
+        folder = Path(c.folder)
+        names = [frame_names(i)[1] for i in range(len(self.observations))]
+        write_colmap_model(folder / "sparse" / "0", c.K, c.width, c.height, c.poses[:len(names)], names,
+                           self.observations, self.points, self.colors, text=bool(c.options.get("colmap_text")))
+        counts = np.bincount(np.concatenate([o[0] for o in self.observations]) if self.observations else
+                             np.zeros(0, int), minlength=len(self.colors))
+        keep = np.flatnonzero(counts >= 2)
+        xyz = np.asarray(self.points, np.float64)[keep] if self.points is not None else np.zeros((0, 3))
+        write_ply(folder / POINTS_PLY, {"x": xyz[:, 0].astype(np.float32), "y": xyz[:, 1].astype(np.float32),
+                                        "z": xyz[:, 2].astype(np.float32), "red": self.colors[keep, 0],
+                                        "green": self.colors[keep, 1], "blue": self.colors[keep, 2]},
+                  comments=[f"{PLY_FORMAT_COMMENT} {FORMAT_VERSION}",
+                            "the COLMAP model's 3D points (sparse/0), world metres, colour from the display PNG"])
 
 
 # ---- reading ---------------------------------------------------------------------------------
@@ -83,6 +142,8 @@ def read_colmap_model(folder: str | Path) -> ColmapModel:
     refusing what would give silently wrong poses: truncated binary files (their byte counts
     are checked before pycolmap reads them), zero or non-finite intrinsics, a principal point
     outside the image, rotations that are not proper (det +1) or not finite."""
+    import pycolmap
+
     folder = Path(folder)
     if (folder / "images.bin").is_file():
         for name in ("cameras.bin", "images.bin"):

@@ -44,10 +44,17 @@ PART_NAMES = tuple(PART_OF_TYPE.values())  # colour (HALF), data (FLOAT), ids (U
 def use_all_cores() -> None:
     """Let OpenEXR compress and decompress line blocks on every core this process may use
     (its global thread pool; the library's default is none). The bytes written do not depend
-    on the thread count (tested). A count set by the caller (non-zero) is kept."""
+    on the thread count (tested). A count set by the caller (non-zero) is kept. Called by the
+    first write or read of a frame, not at import: a process that only imports this module
+    (the batch driver, which imports every exporter to find the exports) starts no pool, so
+    the children it forks (Ray's, started with a preexec_fn) inherit none."""
+    global _FORK_HOOK
     if OpenEXR.global_thread_count() == 0:
         OpenEXR.set_global_thread_count(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                         else os.cpu_count() or 1)
+    if not _FORK_HOOK and hasattr(os, "register_at_fork"):
+        os.register_at_fork(after_in_child=_threads_after_fork)
+        _FORK_HOOK = True
 
 
 def _threads_after_fork() -> None:
@@ -57,15 +64,14 @@ def _threads_after_fork() -> None:
     use_all_cores()
 
 
-use_all_cores()
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_threads_after_fork)
+_FORK_HOOK = False  # whether _threads_after_fork is registered (once, with the first pool)
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",
                 attributes: dict | None = None) -> Path:
     """Write ``outputs`` (modality name -> array, all of one (H, W)) to an EXR file, one part
     per component type: ``colour`` (HALF), ``data`` (FLOAT), ``ids`` (UINT) (docs/format.md)."""
+    use_all_cores()
     if compression not in COMPRESSIONS:
         raise ValueError(f"unknown EXR compression {compression!r}; choose one of {', '.join(COMPRESSIONS)}")
     unknown = [n for n in outputs if n not in MODALITIES]
@@ -121,6 +127,7 @@ def read_frame_exr(path: str | Path, keys=None) -> dict:
     ``buildee/modalities`` (other tools') are matched against the registry by channel names.
     A truncated or damaged file raises :class:`~exporters.hdf5.DamagedFileError` naming it
     (its structure is checked before OpenEXR decodes it; ZIP chunks carry zlib's checksum)."""
+    use_all_cores()
     path = Path(path)
     if not path.is_file():
         raise DamagedFileError(f"{path}: no such file; {REMEDY}")

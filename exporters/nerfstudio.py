@@ -26,7 +26,7 @@ from .sinks import FrameRecord, TrajectoryContext, register_sink
 OPENCV_TO_OPENGL = np.diag([1.0, -1.0, -1.0, 1.0])
 DEPTH_UNITS = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)  # metres per PNG unit
 DEPTH_MAX_UNITS = 65535
-POINTS_PLY = "points3D.ply"  # the COLMAP points with colours (exporters.trajectory_sinks.ColmapSink)
+POINTS_PLY = "points3D.ply"  # the COLMAP points with colours (exporters.colmap.ColmapSink)
 TRANSFORMS = "transforms.json"
 
 

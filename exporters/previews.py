@@ -1,5 +1,7 @@
 """Preview images of a trajectory: a contact sheet of frames, one column per modality, each
-coloured as its entry in exporters/modalities.py says (``preview``)."""
+coloured as its entry in exporters/modalities.py says (``preview``), written by the
+``previews`` sink (``contact_sheet.png``); and the trajectory over the site map, written by
+the ``map`` sink (``map.png``)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,9 @@ from generator.geometry import portable_math
 
 from .modalities import MODALITIES
 from .palette import colorize_labels
+from .sinks import FrameRecord, TrajectoryContext, register_sink
+
+PREVIEW_FRAMES = 6  # rows of each trajectory's contact sheet
 
 # an inferno-like ramp: near (0) bright yellow -> orange -> magenta -> far (1) dark blue
 _RAMP = np.array([[252, 255, 164], [250, 193, 39], [245, 125, 21], [212, 72, 66], [159, 42, 99],
@@ -161,3 +166,43 @@ def contact_sheet(path: str | Path, frames: list[dict], labels: list[str], names
     path = Path(path)
     sheet.save(path)
     return path
+
+
+@register_sink("previews")
+class PreviewSink:
+    """``contact_sheet.png``: up to :data:`PREVIEW_FRAMES` frames spread over the trajectory,
+    one column per written modality that has a preview colouring."""
+
+    def __init__(self, context: TrajectoryContext):
+        self.context = context
+        T = len(context.poses)
+        self.rows = set(np.linspace(0, T - 1, min(PREVIEW_FRAMES, T)).round().astype(int).tolist())
+        self.names = [n for n in context.modalities if MODALITIES[n].preview is not None]
+        self.frames: list[dict] = []
+
+    def add_frame(self, frame: FrameRecord) -> None:
+        if frame.index in self.rows and self.names:
+            self.frames.append({"index": frame.index} | {n: frame.outputs[n] for n in self.names})
+
+    def close(self) -> None:
+        if self.frames:
+            contact_sheet(Path(self.context.folder) / "contact_sheet.png", self.frames, self.context.labels, self.names)
+
+
+@register_sink("map")
+class MapSink:
+    """``map.png``: the trajectory over the top-down site map (when ``options["plan"]`` holds
+    the generated site's plan)."""
+
+    def __init__(self, context: TrajectoryContext):
+        self.context = context
+
+    def add_frame(self, frame: FrameRecord) -> None:
+        pass
+
+    def close(self) -> None:
+        plan = self.context.options.get("plan")
+        if plan is not None:
+            from generator.scene.site_map import draw_map
+
+            draw_map(plan, Path(self.context.folder) / "map.png", trajectory=np.asarray(self.context.poses)[:, :3, 3])

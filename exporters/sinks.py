@@ -2,8 +2,11 @@
 
 The loop that flies a trajectory builds one :class:`TrajectoryContext`, makes every sink
 from it, hands each rendered frame to every sink as a :class:`FrameRecord` and finally
-calls ``close()``. A sink knows nothing else: adding an export is one new sink class plus
-its registration in :data:`SINKS`.
+calls ``close()``. A sink knows nothing else. Each sink lives beside the format it writes
+and registers itself there with :func:`register_sink`, with the command-line options it
+needs (``--colmap-text``): their values reach it in ``TrajectoryContext.options`` and are
+part of the run's parameters (a manifest's config). Every module of ``exporters/`` is
+imported on the first lookup, so adding an export is one new file.
 """
 
 from __future__ import annotations
@@ -13,6 +16,9 @@ from pathlib import Path
 from typing import Callable, Protocol
 
 import numpy as np
+
+from generator.cli_args import Option
+from generator.registry import Registry, RegistryError, origin
 
 
 @dataclass(frozen=True)
@@ -31,7 +37,9 @@ class TrajectoryContext:
     point_table: the ground-truth point set as stored in exports (``Simulator.point_table``).
     modalities: names of the per-frame modalities being written (``--outputs``), in the
     order of ``exporters.modalities.MODALITIES``.
-    options: free-form per-run options (e.g. ``{"colmap_text": False, "plan": site plan}``).
+    options: per-run options: the values of the sinks' own options (``{"colmap_text": False}``:
+    :func:`export_options`) and what the run knows of the site (``"plan"``: the site plan,
+    ``"ground_truth"``, ``"segmentation_sensitivity"``: the Simulator's settings).
     object_matrices (T, D, 4, 4): world_from_object of ``dynamic_objects`` at every frame.
     clip: (near, far) planar depth limits of the rendered surfaces, metres.
     scene_bounds (2, 3): world axis-aligned bounds (min, max) of every part over all frames.
@@ -87,31 +95,47 @@ class Sink(Protocol):
     def close(self) -> None: ...
 
 
-# name -> factory(context) -> Sink; filled by the modules that define sinks.
-SINKS: dict[str, Callable[[TrajectoryContext], Sink]] = {}
+@dataclass(frozen=True)
+class SinkEntry:
+    """A registered export: ``factory(context) -> Sink`` (the sink class) and the command-line
+    ``options`` it adds (generator.cli_args.Option; each one's ``dest`` is its key in
+    ``TrajectoryContext.options`` and in the run's config)."""
 
-# the modules whose imports register the exports (a new export adds its module here)
-SINK_MODULES = ("exporters.frames", "exporters.trajectory_sinks", "exporters.nerfstudio", "exporters.coco", "exporters.boxes3d")
-
-
-def load_sinks() -> dict[str, Callable[[TrajectoryContext], Sink]]:
-    """Import every module of :data:`SINK_MODULES` (registering their sinks) and return
-    :data:`SINKS`, in registration order."""
-    import importlib
-
-    for name in SINK_MODULES:
-        importlib.import_module(name)
-    return SINKS
+    name: str
+    factory: Callable[[TrajectoryContext], Sink]
+    options: tuple[Option, ...] = ()
 
 
-def register_sink(name: str):
-    """Class decorator: ``@register_sink("coco")`` makes the sink available to the loop."""
+SINKS: Registry[SinkEntry] = Registry("export", "exporters")
+
+
+def register_sink(name: str, options: tuple[Option, ...] = ()):
+    """Class decorator: ``@register_sink("coco")`` makes the sink available to the loop;
+    ``options`` are the command-line options it reads from ``context.options``."""
 
     def wrap(factory):
-        old = SINKS.get(name)
-        if old is not None and (old.__module__, old.__qualname__) != (factory.__module__, factory.__qualname__):
-            raise ValueError(f"sink {name!r} is registered twice")
-        SINKS[name] = factory
+        SINKS.add(name, SinkEntry(name, factory, tuple(options)), origin(factory))
         return factory
 
     return wrap
+
+
+def load_sinks() -> dict[str, Callable[[TrajectoryContext], Sink]]:
+    """Every registered sink factory by name (name order), the modules of ``exporters/``
+    imported first."""
+    return {name: entry.factory for name, entry in SINKS.items()}
+
+
+def export_options() -> list[Option]:
+    """The command-line options of every export, in the exports' name order; RegistryError if
+    two declare the same option."""
+    seen: dict[str, str] = {}
+    options = []
+    for name, entry in SINKS.items():
+        for option in entry.options:
+            if option.dest in seen:
+                raise RegistryError(f"option {option.flag} is declared by the exports {seen[option.dest]!r} and "
+                                    f"{name!r}: rename one")
+            seen[option.dest] = name
+            options.append(option)
+    return options

@@ -17,6 +17,8 @@ attribute (:data:`UNITS`), the root attributes restate the conventions.
               tracks_3d (Q, T, 3) world metres; point_ids (Q,)
   attrs       format_version, labels (JSON, fixed-length UTF-8), conventions
 
+The ``tracks`` sink (:class:`TracksSink`) writes it as the trajectory is flown.
+
 Every dataset carries HDF5's Fletcher-32 checksum and the file uses the HDF5 1.10 format
 (checksummed metadata), so a damaged file fails to read instead of giving other values
 (exporters/hdf5.py); ``objects/names`` holds fixed-length UTF-8 bytes for the same reason.
@@ -39,6 +41,7 @@ from generator.geometry.camera import apply_affine, project
 from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, access_error, attribute, create_file, damaged, dataset, group,
                    open_file, read, reason, text, text_attribute, verify)
+from .sinks import FrameRecord, TrajectoryContext, register_sink
 
 _CHUNK = 1 << 16
 
@@ -169,6 +172,22 @@ class TrackWriter:
         _write_units(f, "tapvid/")
         f.close()
         return self.path
+
+
+@register_sink("tracks")
+class TracksSink:
+    """``tracks.h5``: every frame's visible points, poses and object matrices (:class:`TrackWriter`)."""
+
+    def __init__(self, c: TrajectoryContext):
+        self.writer = TrackWriter(Path(c.folder) / "tracks.h5", c.point_table, c.dynamic_objects, c.labels, c.K,
+                                  c.width, c.height, seed=c.seed)
+
+    def add_frame(self, frame: FrameRecord) -> None:
+        self.writer.add_frame(frame.timestamp, frame.world_from_camera, frame.points, frame.visible,
+                              frame.object_matrices, frame.coverage)
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 def world_positions(data: dict, t: int, ids: np.ndarray) -> np.ndarray:

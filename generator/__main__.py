@@ -12,10 +12,10 @@ import signal
 import sys
 from pathlib import Path
 
-from trajectories import KINDS
+from trajectories import TRAJECTORY_KINDS
 
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, RunConfig
-from .batch.executors import DEFAULT_CPUS_PER_SEED, DEFAULT_RETRIES, EXECUTORS, MIN_CPUS_PER_SEED
+from .batch.executors import add_executor_arguments, executor_arguments_problem
 from .checks import MAX_SEED
 from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
                        resolution)
@@ -23,6 +23,7 @@ from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
 from exporters.modalities import MODALITIES
+from exporters.sinks import export_options
 
 DEFAULTS = RunConfig()
 
@@ -68,37 +69,22 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--frames", type=int_at_least(2, "frames", MAX_FRAMES), default=DEFAULTS.frames,
                    help=f"frames per trajectory, 2 to {MAX_FRAMES}, at 10 frames per second of scene time "
                         f"(default: {DEFAULTS.frames})")
-    p.add_argument("--trajectory", choices=KINDS, action="append", dest="trajectories",
+    p.add_argument("--trajectory", choices=TRAJECTORY_KINDS.names(), action="append", dest="trajectories",
                    help="trajectory kind, repeatable (default: orbit and spline)")
     p.add_argument("--points-density", type=positive_float(), default=DEFAULTS.points_density,
                    help=f"surface points per square metre for tracking and coverage (default: {DEFAULTS.points_density})")
     p.add_argument("--scoring-density", type=positive_float(), default=DEFAULTS.scoring_density,
                    help=f"points per square metre of the ground-truth cloud for scoring, at most "
                         f"{MAX_SCORING_POINTS // 10**6} million points in all (default: {DEFAULTS.scoring_density:g})")
-    p.add_argument("--colmap-text", action="store_true", help="also write the COLMAP models as text (.txt)")
+    for option in export_options():  # each export's own options (--colmap-text), declared beside its sink
+        option.add_to(p)
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
     p.add_argument("--phases", type=int_at_least(1, "phases", MAX_PHASES), default=1,
                    help=f"stages of each site's timeline, 1 to {MAX_PHASES}: phase_K/ folders flown along the same "
                         "trajectories plus changes.h5 (default: 1, one site as before; docs/phases.md)")
-    p.add_argument("--workers", type=int_at_least(1, "workers"), default=None,
-                   help="local executor: seeds processed at once, one process each (default: 1; Cycles already "
-                        "uses every core)")
-    p.add_argument("--executor", choices=EXECUTORS, default="local",
-                   help="where the seeds run: local (worker processes on this machine; default) or ray (one Ray "
-                        "task per seed on a Ray cluster; --out must be a folder every node sees; docs/scale.md)")
-    p.add_argument("--ray-address", default=None,
-                   help="ray: the cluster's HOST:PORT as `ray start --head` prints it, or auto (default: "
-                        "$RAY_ADDRESS if set, else a local Ray started for this run)")
-    cpus = positive_float(f"a positive number of CPUs, at least {MIN_CPUS_PER_SEED:g} (the finest fraction Ray "
-                          "reserves)", at_least=MIN_CPUS_PER_SEED)
-    p.add_argument("--cpus-per-seed", type=cpus, default=None,
-                   help=f"ray: CPUs each seed reserves, at least {MIN_CPUS_PER_SEED:g}; a node runs (its CPUs / N) "
-                        f"seeds at once (default: {DEFAULT_CPUS_PER_SEED:g})")
-    p.add_argument("--retries", type=int_at_least(0, "retries", 100), default=None,
-                   help=f"ray: how many times a seed is run again when its worker process or its node dies "
-                        f"(default: {DEFAULT_RETRIES})")
+    add_executor_arguments(p)  # --executor and each executor's own options (generator/batch/executors/)
     p.add_argument("--shard", type=_shard, default=(0, 1),
                    help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
     p.add_argument("--overwrite", action="store_true",
@@ -120,17 +106,13 @@ def parse_args(argv=None) -> argparse.Namespace:
     if first_repeated(outputs) is not None:
         p.error(f"--outputs lists {first_repeated(outputs)} twice")
     check_out_folder(p, args.out)
-    ray_only = [o for o, v in (("--ray-address", args.ray_address), ("--cpus-per-seed", args.cpus_per_seed),
-                               ("--retries", args.retries)) if v is not None]
-    if args.executor != "ray" and ray_only:
-        p.error(f"{ray_only[0]} applies to --executor ray")
-    if args.executor == "ray" and args.workers is not None:
-        p.error("--workers applies to the local executor; with --executor ray each node runs as many seeds as its "
-                "CPUs allow (--cpus-per-seed)")
+    problem = executor_arguments_problem(args)
+    if problem:
+        p.error(problem)
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
-                            DEFAULTS.max_depth, args.scoring_density, args.colmap_text, device=args.device,
-                            outputs=outputs, phases=args.phases)
+                            DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
+                            phases=args.phases, exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:
@@ -174,17 +156,14 @@ def main(argv=None) -> int:
     seeds = [s for i, s in enumerate(args.seeds) if i % n == k]
     # --repair hashes every file: a repair that trusted modification times could leave what
     # `verify` reported (bytes changed with their time put back) and call the seed complete
-    opts = Options(args.overwrite, args.repair, True if args.verify or args.repair else None, args.wait,
-                   args.workers or 1)
+    opts = Options(args.overwrite, args.repair, True if args.verify or args.repair else None, args.wait)
     # Ctrl-C is remembered from the start (Ray's start-up swallows it); SIGTERM gets our handler
     # once the executor is up (Ray's own start-up handler aborts if a Python one was set)
     signal.signal(signal.SIGINT, interrupt)
     INTERRUPTED.clear()
     SIGNALS.clear()
     try:
-        executor = make_executor(args.executor, args.out, workers=opts.workers, address=args.ray_address,
-                                 cpus_per_seed=args.cpus_per_seed or DEFAULT_CPUS_PER_SEED,
-                                 retries=DEFAULT_RETRIES if args.retries is None else args.retries)
+        executor = make_executor(args.executor, args.out, args)
     except ExecutorError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -7,7 +7,9 @@ import argparse
 import math
 import os
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from .render_settings import check_side
 
@@ -21,6 +23,29 @@ class OneLineParser(argparse.ArgumentParser):
             message += " (no value given? a value that starts with '-' must be written --option=VALUE)"
         print(f"error: {message} (see {self.prog} --help)", file=sys.stderr)
         sys.exit(2)
+
+
+@dataclass(frozen=True)
+class Option:
+    """A command-line option that a registered part declares beside its code (an executor's
+    ``--ray-address``, an export's ``--colmap-text``): ``flag``, its ``help``, and argparse's
+    ``type`` (a parser of the text, e.g. :func:`int_at_least`), ``action`` (e.g.
+    ``"store_true"``) and ``default``. Its value is ``args.<dest>``."""
+
+    flag: str
+    help: str
+    type: Callable[[str], object] | None = None
+    action: str | None = None
+    default: object = None
+
+    @property
+    def dest(self) -> str:
+        """The attribute argparse stores the value in: ``--ray-address`` -> ``ray_address``."""
+        return self.flag.lstrip("-").replace("-", "_")
+
+    def add_to(self, parser: argparse.ArgumentParser) -> None:
+        keywords = {k: v for k, v in (("type", self.type), ("action", self.action)) if v is not None}
+        parser.add_argument(self.flag, help=self.help, default=self.default, **keywords)
 
 
 def out_folder(text: str) -> Path:

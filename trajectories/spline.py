@@ -13,6 +13,7 @@ from generator.geometry.camera import heading_pose
 
 from . import checks
 from .base import MotionChecker, Trajectory, TrajectoryError, timestamps
+from .kinds import FlightSite, register_kind
 
 
 def _catmull_rom(points: np.ndarray, samples_per_segment: int) -> np.ndarray:
@@ -75,3 +76,13 @@ def spline_flythrough(checker: MotionChecker, bounds, frames: int, rng: np.rando
                           {"speed_m_s": speed, "waypoints": np.array(pts).tolist(), "pitch_deg": pitch_deg, "fps": fps})
     raise TrajectoryError(f"no collision-free fly-through of {length:.0f} m found in {attempts} attempts (the "
                           "curve through the waypoints was too short, left the box or was blocked): use fewer frames")
+
+
+@register_kind("spline")
+def fit_spline(site: FlightSite) -> Trajectory:
+    """A fly-through of the spawn box between max(its floor, 2 m) and min(its top,
+    max(its floor + 5 m, 0.2 x the site's size)), with the planner's defaults (3 m/s)."""
+    lo, hi = site.lo, site.hi
+    top = min(hi[2], max(lo[2] + 5.0, 0.2 * site.size))
+    return spline_flythrough(site.checker, ((lo[0], lo[1], max(lo[2], 2.0)), (hi[0], hi[1], top)), site.frames,
+                             site.rng, fps=site.fps)

@@ -13,6 +13,7 @@ from generator.geometry.camera import heading_pose, look_at
 
 from . import checks
 from .base import MotionChecker, Trajectory, TrajectoryError, timestamps
+from .kinds import FlightSite, register_kind
 
 
 def _clear(checker: MotionChecker, positions: np.ndarray) -> bool:
@@ -55,6 +56,15 @@ def orbit(checker: MotionChecker, center, radius: float, altitude: float, frames
                       {"center": c.tolist(), "radius_m": radius, "altitude_m": alt, "turns": turns, "fps": fps})
 
 
+@register_kind("orbit")
+def fit_orbit(site: FlightSite) -> Trajectory:
+    """One turn around the spawn box's centre at 0.45 x the site's size, at max(0.3 x size,
+    15 m) altitude (raised until clear), looking at the point 2 m above the centre."""
+    size = site.size
+    return orbit(site.checker, site.centre[:2], 0.45 * size, max(0.3 * size, 15.0), site.frames, look_at_height=2.0,
+                 fps=site.fps)
+
+
 def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spacing: float,
               pitch_deg: float = -45.0, fps: float = 10.0) -> Trajectory:
     """Back-and-forth passes along x over ``bounds`` ((xmin, ymin), (xmax, ymax)), lines
@@ -90,3 +100,13 @@ def lawnmower(checker: MotionChecker, bounds, altitude: float, frames: int, spac
     poses, alt = _raise_until_clear(checker, make, altitude)
     return Trajectory(poses, timestamps(frames, fps), "lawnmower", [""] * (frames - 1),
                       {"bounds": [[x0, y0], [x1, y1]], "spacing_m": spacing, "altitude_m": alt, "pitch_deg": pitch_deg, "fps": fps})
+
+
+@register_kind("lawnmower")
+def fit_lawnmower(site: FlightSite) -> Trajectory:
+    """Passes over the spawn box less a margin of 0.1 x the site's size on every side, lines
+    size / 4 apart, at max(0.25 x size, 15 m) altitude (raised until clear)."""
+    lo, hi, size = site.lo, site.hi, site.size
+    margin = 0.1 * size
+    return lawnmower(site.checker, ((lo[0] + margin, lo[1] + margin), (hi[0] - margin, hi[1] - margin)),
+                     max(0.25 * size, 15.0), site.frames, spacing=size / 4, fps=site.fps)

@@ -16,10 +16,11 @@ import math
 import numpy as np
 
 from generator.checks import check_integer, check_number, items
-from generator.geometry.camera import translated_along_axis, turned_about_world_z
+from generator.geometry.camera import levelled, translated_along_axis, turned_about_world_z
 
 from . import checks
 from .base import MotionChecker, Trajectory, timestamps
+from .kinds import FlightSite, register_kind
 
 ACTIONS = ("forward", "left", "right", "turn_left", "turn_right")
 # the five actions of the paper's evaluation code as written: its 'right' calls
@@ -109,3 +110,21 @@ def modified_random_walk(checker: MotionChecker, start: np.ndarray, steps: int, 
         draws.append(n)
     return Trajectory(np.stack(poses), timestamps(len(poses), fps), "modified_random_walk", actions,
                       {"step_m": step, "fps": fps, "max_draws": int(max_draws), "heading_draws": draws})
+
+
+def _fit_walk(walk, site: FlightSite) -> Trajectory:
+    """``walk`` from the levelled spawn pose ('forward' is horizontal), kept inside the spawn
+    box, one step a frame: 1 m moves and 15 degree turns (the planners' defaults, 3 m and
+    22.5 degrees, are the paper's exploration steps)."""
+    return walk(site.boxed_checker(), levelled(site.start), site.frames - 1, site.rng, step=1.0, angle=15.0,
+                fps=site.fps)
+
+
+@register_kind("random_walk")
+def fit_random_walk(site: FlightSite) -> Trajectory:
+    return _fit_walk(random_walk, site)
+
+
+@register_kind("modified_random_walk")
+def fit_modified_random_walk(site: FlightSite) -> Trajectory:
+    return _fit_walk(modified_random_walk, site)

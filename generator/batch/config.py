@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
-
-from trajectories import KINDS  # noqa: F401  (the valid --trajectory values)
 
 from ..checks import check_integer, check_number
 from ..render_settings import check_side
@@ -29,8 +27,10 @@ class RunConfig:
     frames: frames per trajectory (scene animation at 10 fps); trajectories: kinds to fly;
     points_density: surface points per square metre; max_depth: visibility limit in metres
     (planar depth); scoring_density: points per square metre of the ground-truth cloud
-    (ground_truth/points.ply); colmap_text: also write the COLMAP model as text; device: Cycles
-    device, 'cpu', 'gpu' or 'auto' (the manifest's summary names the one used)."""
+    (ground_truth/points.ply); device: Cycles device, 'cpu', 'gpu' or 'auto' (the manifest's
+    summary names the one used); exports: the values of the exports' own options, by name
+    (exporters/sinks.py: e.g. {"colmap_text": True}, --colmap-text); an option left out holds its
+    default. In a manifest's config the export options sit beside the other keys."""
 
     scene_preset: str = "medium"
     render_preset: str = "preview"
@@ -40,10 +40,10 @@ class RunConfig:
     points_density: float = 2.0
     max_depth: float = 60.0
     scoring_density: float = 100.0
-    colmap_text: bool = False
     device: str = "auto"
     outputs: tuple[str, ...] = ()  # per-frame modalities to write (exporters/modalities.py); () = all
     phases: int = 1  # stages of the site's timeline, each in phase_K/ (generator/batch/phases.py, docs/phases.md)
+    exports: dict = field(default_factory=dict)  # export option name -> value (export_values)
 
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
@@ -64,6 +64,11 @@ class RunConfig:
         twice = sorted({k for k in self.trajectories if list(self.trajectories).count(k) > 1})
         if twice:
             raise ValueError(f"--trajectory {twice[0]} is given twice; each kind is flown once per seed")
+        from trajectories import TRAJECTORY_KINDS
+
+        for kind in self.trajectories:
+            TRAJECTORY_KINDS.get(kind)  # ValueError naming the kinds there are
+        check_export_values(export_values(self.exports))
         area = site_area_lower_bound(self.scene_preset)
         for name, density, limit in (("points-density", self.points_density, MAX_SURFACE_POINTS),
                                      ("scoring-density", self.scoring_density, MAX_SCORING_POINTS)):
@@ -81,6 +86,7 @@ class RunConfig:
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
+        d |= export_values(d.pop("exports"))
         for key, value in IMPLIED_CONFIG.items():  # a one-stage run's config reads as before timelines existed
             if d[key] == value:
                 del d[key]
@@ -88,8 +94,39 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "RunConfig":
-        return cls(**(d | {"resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"]),
-                           "outputs": tuple(d.get("outputs", ()))}))
+        """The RunConfig of ``to_dict()``: keys that are not fields are export options."""
+        own = {f.name for f in fields(cls)} - {"exports"}
+        return cls(**({k: v for k, v in d.items() if k in own} | {
+            "resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"]),
+            "outputs": tuple(d.get("outputs", ())), "exports": {k: v for k, v in d.items() if k not in own}}))
+
+
+def export_values(given: dict) -> dict:
+    """Every export option's value (exporters/sinks.py: each export declares its own options,
+    and they are parameters of the run): ``given``'s, and the others' defaults. ValueError
+    naming an unknown option, or an export option named like a parameter of RunConfig."""
+    from exporters.sinks import export_options
+
+    options = {o.dest: o for o in export_options()}
+    shadowed = sorted(set(options) & {f.name for f in fields(RunConfig)})
+    if shadowed:
+        raise ValueError(f"the export option {options[shadowed[0]].flag} has the name of a run parameter "
+                         f"({shadowed[0]}): rename the option")
+    unknown = sorted(set(given) - set(options))
+    if unknown:
+        raise ValueError(f"unknown export option {unknown[0]!r}; the exports' options are: "
+                         f"{', '.join(sorted(options)) or 'none'}")
+    return {dest: given.get(dest, option.default) for dest, option in options.items()}
+
+
+def check_export_values(values: dict) -> None:
+    """ValueError if an on/off export option (``action="store_true"``) holds anything but a bool."""
+    from exporters.sinks import export_options
+
+    for option in export_options():
+        value = values[option.dest]
+        if option.action in ("store_true", "store_false") and not isinstance(value, bool):
+            raise ValueError(f"{option.flag} ({option.dest}) must be True or False, got {value!r}")
 
 
 def canonical_config(config: dict) -> dict:
@@ -103,6 +140,15 @@ def canonical_config(config: dict) -> dict:
     if not isinstance(outputs, list) or not all(isinstance(n, str) and n in MODALITIES for n in outputs):
         return config
     return config | {"outputs": sorted(outputs, key=table.index)}
+
+
+def run_timing(t0: float, executor: str) -> dict:
+    """A manifest's timing: wall-clock seconds since ``t0`` (time.perf_counter) and, when
+    known, the name of the executor that ran the seed (neither is a parameter of the seed:
+    both may differ between runs that make the same files)."""
+    import time
+
+    return {"seconds": time.perf_counter() - t0} | ({"executor": executor} if executor else {})
 
 
 def site_area_lower_bound(preset: str) -> float:
@@ -131,31 +177,16 @@ def check_point_budget(cfg: RunConfig, surface_points: int) -> None:
 
 
 def plan_trajectory(kind: str, checker, spawn_points: np.ndarray, start: np.ndarray, seed: int, frames: int, fps: float):
-    """A trajectory of ``kind`` over a site whose flyable space is given by its spawn points."""
-    from trajectories import BoundedChecker, lawnmower, modified_random_walk, orbit, random_walk, spline_flythrough
-
-    from ..geometry.camera import levelled
+    """A trajectory of ``kind`` over a site whose flyable space is given by its spawn points,
+    fitted as the kind's registration says (trajectories/: ``@register_kind``), with the
+    seed's random stream of that kind."""
+    from trajectories import FlightSite, fit_kind
 
     from ..geometry.seeding import stream
 
-    lo, hi = spawn_points.min(axis=0), spawn_points.max(axis=0)
-    centre = (lo + hi) / 2
-    size = float(max(hi[0] - lo[0], hi[1] - lo[1]))
-    rng = stream(seed, "trajectory", kind)
-    if kind == "orbit":
-        return orbit(checker, centre[:2], 0.45 * size, max(0.3 * size, 15.0), frames, look_at_height=2.0, fps=fps)
-    if kind == "lawnmower":
-        margin = 0.1 * size
-        return lawnmower(checker, ((lo[0] + margin, lo[1] + margin), (hi[0] - margin, hi[1] - margin)),
-                         max(0.25 * size, 15.0), frames, spacing=size / 4, fps=fps)
-    if kind == "spline":
-        top = min(hi[2], max(lo[2] + 5.0, 0.2 * size))
-        return spline_flythrough(checker, ((lo[0], lo[1], max(lo[2], 2.0)), (hi[0], hi[1], top)), frames, rng, fps=fps)
-    walk = {"random_walk": random_walk, "modified_random_walk": modified_random_walk}.get(kind)
-    if walk is None:
-        raise ValueError(f"unknown trajectory kind {kind!r}")
-    # level camera ('forward' is horizontal), kept inside the flyable volume
-    return walk(BoundedChecker(checker, lo, hi), levelled(start), frames - 1, rng, step=1.0, angle=15.0, fps=fps)
+    site = FlightSite(checker, spawn_points.min(axis=0), spawn_points.max(axis=0), start,
+                      stream(seed, "trajectory", kind), frames, fps)
+    return fit_kind(kind, site)
 
 
 def plan_trajectories(sim, kinds, start: np.ndarray, seed: int, frames: int, fps: float) -> list:

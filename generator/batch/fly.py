@@ -1,9 +1,11 @@
 """The trajectory loop: render every frame and hand it to every export (exporters/sinks.py).
 
 ``fly`` only orchestrates: it builds the :class:`~exporters.sinks.TrajectoryContext`, makes
-one sink per registered export (frames, tracks, COLMAP, nerfstudio, coverage, previews,
-map, and whatever else registers itself), hands each sink every :class:`FrameRecord`, and
-closes them. What each file holds is the sink's business."""
+one sink per registered export (every ``@register_sink`` of exporters/: frames, tracks,
+COLMAP, nerfstudio, COCO, 3D boxes, coverage, previews, map, and whatever else registers
+itself), hands each sink every :class:`FrameRecord`, and closes them. What each file holds
+is the sink's business; the values of the exports' own options reach them in
+``TrajectoryContext.options``."""
 
 from __future__ import annotations
 
@@ -42,14 +44,17 @@ def scene_bounds(parts, object_matrices: np.ndarray, dynamic_objects: list[str])
     return np.array([lo, hi])
 
 
-def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, outputs=None,
+def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None, outputs=None,
         on_frame=None) -> tuple[list[float], int]:
     """Render every frame of ``traj`` with the modalities ``outputs`` (default: all) and hand
-    them to every registered sink, writing into ``out``; then ``trajectory.npz``. ``on_frame()``
-    is called after each frame (progress). Returns
+    them to every registered sink, writing into ``out``; then ``trajectory.npz``. ``exports``:
+    values of the exports' options (RunConfig.exports; the others at their defaults).
+    ``on_frame()`` is called after each frame (progress). Returns
     (coverage per frame, visible point observations)."""
     from exporters.modalities import resolve
     from exporters.sinks import FrameRecord, TrajectoryContext, load_sinks
+
+    from .config import export_values
 
     names = resolve(outputs or None)
     out = Path(out)
@@ -62,8 +67,8 @@ def fly(sim, traj, out: Path, seed: int, plan=None, colmap_text: bool = False, o
         poses=np.asarray(traj.poses), timestamps=np.asarray(traj.timestamps), labels=list(sim.labels),
         instances=sim.instance_table, parts=parts, dynamic_objects=sim.dynamic_objects, point_table=sim.point_table(),
         modalities=names, object_matrices=matrices,
-        options={"colmap_text": colmap_text, "plan": plan, "ground_truth": sim.ground_truth,
-                 "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
+        options=export_values(exports or {}) | {"plan": plan, "ground_truth": sim.ground_truth,
+                                                "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
         scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects))
     sinks = [factory(context) for factory in load_sinks().values()]
@@ -101,7 +106,7 @@ def fly_scene(sim, trajectories, folder: Path, seed: int, plan, cfg, on_frame=No
 
     per_kind, tracks = {}, 0
     for kind, traj in trajectories:
-        coverage, visible = fly(sim, traj, Path(folder) / kind, seed, plan, cfg.colmap_text, cfg.outputs,
+        coverage, visible = fly(sim, traj, Path(folder) / kind, seed, plan, cfg.exports, cfg.outputs,
                                 on_frame=on_frame)
         tracks += visible
         per_kind[kind] = {"frames": len(traj), "final_coverage": coverage[-1]}

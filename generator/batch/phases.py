@@ -43,8 +43,9 @@ class AllStages:
         return all(segment_is_free(g, a, b, self.radius) for g in self.geometries)
 
 
-def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
-    """Generate the K stages of ``seed`` into ``folder`` and its changes; manifest last."""
+def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
+    """Generate the K stages of ``seed`` into ``folder`` and its changes; manifest last
+    (``executor``: the name of the executor running it, for the manifest's timing)."""
     from exporters import FORMAT_VERSION
     from exporters.manifest import write_manifest
 
@@ -52,7 +53,7 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
     from ..blender import session
     from ..geometry.raycast import SceneGeometry
     from ..scene import build_site, plan_site, site_params
-    from .config import check_point_budget
+    from .config import check_point_budget, run_timing
     from .fly import fly_scene
 
     t0 = time.perf_counter()
@@ -105,7 +106,7 @@ def run_phases(cfg, seed: int, folder: Path, emit) -> dict:
                 "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
     write_manifest(folder, {"format_version": FORMAT_VERSION, "seed": seed, "config": cfg.to_dict(), "versions": versions,
-                            "summary": summary, "timing": {"seconds": time.perf_counter() - t0}})
+                            "summary": summary, "timing": run_timing(t0, executor)})
     return summary
 
 

@@ -176,7 +176,8 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
                     if decision.message:
                         tqdm.write(f"seed {seed}: {decision.message}")
                     locks[seed] = lock
-                    executor.submit(SeedJob(seed, str(Path(out).absolute()), cfg.to_dict(), decision.replace, lock.fd))
+                    executor.submit(SeedJob(seed, str(Path(out).absolute()), cfg.to_dict(), decision.replace, lock.fd,
+                                            executor=executor.name))
             pending = waiting + pending
             for e in executor.events(timeout=0.2):
                 handle(e)

@@ -1,7 +1,8 @@
 """One seed of the batch job, in its own process: ``python -m generator.batch.worker
-CONFIG_JSON SEED FOLDER``. Builds the site, flies each trajectory rendering every frame,
-writes everything into FOLDER and finally its manifest. Progress goes to stdout as lines
-``@@{json}``; Blender's log goes to FOLDER/blender.log."""
+CONFIG_JSON SEED FOLDER [EXECUTOR]``. Builds the site, flies each trajectory rendering every
+frame, writes everything into FOLDER and finally its manifest (whose timing names the
+EXECUTOR that ran it, when given). Progress goes to stdout as lines ``@@{json}``; Blender's
+log goes to FOLDER/blender.log."""
 
 from __future__ import annotations
 
@@ -19,8 +20,9 @@ def emit(**event) -> None:
 from .fly import fly_scene  # noqa: E402  (the trajectory loop)
 
 
-def run(config: dict, seed: int, folder: Path) -> dict:
-    """Generate ``seed`` into ``folder`` (made and marked by the runner), manifest last."""
+def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
+    """Generate ``seed`` into ``folder`` (made and marked by the runner), manifest last;
+    ``executor``: the name of the executor running it, for the manifest's timing."""
     from ..blender import session
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -31,13 +33,13 @@ def run(config: dict, seed: int, folder: Path) -> dict:
 
     from .. import Simulator
     from ..scene import build_site, plan_site, site_params
-    from .config import RunConfig, check_point_budget, plan_trajectories
+    from .config import RunConfig, check_point_budget, plan_trajectories, run_timing
 
     cfg = RunConfig.from_dict(config).validated()
     if cfg.phases > 1:  # a timeline of the site: phase_K/ folders and changes.h5 (docs/phases.md)
         from .phases import run_phases
 
-        return run_phases(cfg, seed, folder, emit)
+        return run_phases(cfg, seed, folder, emit, executor)
     t0 = time.perf_counter()
     site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames))
     sim = Simulator(site.blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
@@ -57,7 +59,7 @@ def run(config: dict, seed: int, folder: Path) -> dict:
     from exporters import FORMAT_VERSION
 
     write_manifest(folder, {"format_version": FORMAT_VERSION, "seed": seed, "config": cfg.to_dict(), "versions": versions, "summary": summary,
-                            "timing": {"seconds": time.perf_counter() - t0}})
+                            "timing": run_timing(t0, executor)})
     return summary
 
 
@@ -91,12 +93,13 @@ def _die_with_parent() -> None:
 def main(argv: list[str]) -> int:
     _die_with_parent()
     config, seed, folder = json.loads(argv[0]), int(argv[1]), Path(argv[2])
+    executor = argv[3] if len(argv) > 3 else ""
     try:
         # testing hook: BUILDEE_FAIL_SEEDS="5,7" makes those seeds fail after the site is built
         if str(seed) in os.environ.get("BUILDEE_FAIL_SEEDS", "").split(","):
             folder.mkdir(parents=True, exist_ok=True)
             raise RuntimeError(f"seed {seed} failed on purpose (BUILDEE_FAIL_SEEDS)")
-        summary = run(config, seed, folder)
+        summary = run(config, seed, folder, executor)
     except Exception as exc:  # reported to the runner as one line; details in the log
         import traceback
 

@@ -10,16 +10,20 @@ import queue
 import signal
 import subprocess
 import threading
+from dataclasses import replace
 from pathlib import Path
 
+from generator.cli_args import Option, int_at_least
+
 from .. import folders
-from . import Executor, SeedJob, produce_seed
+from . import Executor, SeedJob, produce_seed, register_executor
 from .seed import CANCEL_WAIT
 
 
+@register_executor("local", "worker processes on this machine", options=(
+    Option("--workers", "local executor: seeds processed at once, one process each (default: 1; Cycles already "
+                        "uses every core)", type=int_at_least(1, "workers")),))
 class LocalExecutor(Executor):
-    name = "local"
-
     def __init__(self, workers: int = 1):
         self.workers = workers
         self.queue: queue.Queue = queue.Queue()
@@ -28,12 +32,16 @@ class LocalExecutor(Executor):
         self.made: set[int] = set()  # seeds whose partial folder this run made (their worker started)
         self.cancelled = threading.Event()
 
+    @classmethod
+    def from_options(cls, out: Path, options) -> "LocalExecutor":
+        return cls(options.workers or 1)
+
     def room(self) -> int:
         return self.workers - len(self.running)
 
     def submit(self, job: SeedJob) -> None:
         env = job.env | {k: v for k, v in os.environ.items() if k.startswith(self.FORWARDED_ENV_PREFIX)}
-        job = SeedJob(job.seed, job.out, job.config, job.replace, job.lock_fd, env)
+        job = replace(job, env=env)
         thread = threading.Thread(target=self._run, args=(job,), daemon=True)
         self.running[job.seed] = (job, thread)
         thread.start()

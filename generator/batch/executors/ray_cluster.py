@@ -12,7 +12,9 @@ process that dies, or a node that dies makes Ray run the task again, at most ``r
 more times; every attempt starts by removing the partial folder of the one before
 (folders.start_partial). Only a committed folder is ever complete.
 
-The driver keeps the seed's lock (runner.py) for the whole life of the task. bpy-free."""
+The driver keeps the seed's lock (runner.py) for the whole life of the task. bpy-free.
+Ray (a second to import) is imported inside the functions that use it: listing the
+executors (every run, ``--help``) imports this module, not Ray."""
 
 from __future__ import annotations
 
@@ -25,14 +27,18 @@ import tempfile
 import threading
 import time
 import uuid
+from dataclasses import replace
 from pathlib import Path
 
-import ray
-from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+from generator.cli_args import Option, int_at_least, positive_float
 
 from .. import folders
-from . import Executor, ExecutorError, Outcome, SeedJob, produce_seed
+from . import Executor, ExecutorError, Outcome, SeedJob, produce_seed, register_executor
 from .seed import CANCEL_WAIT
+
+DEFAULT_CPUS_PER_SEED = 2.0  # one seed per 2 CPUs (the machine measured in docs/benchmarks.md: ~2.4 GB a seed)
+MIN_CPUS_PER_SEED = 0.0001  # the finest fraction of a resource Ray accepts (smaller ones raise)
+DEFAULT_RETRIES = 2  # a seed whose worker or node dies is run at most 3 times in all
 
 CONNECT_TIMEOUT_S = 5.0  # TCP connection to the cluster's address
 INIT_TIMEOUT_S = 60.0  # ray.init against an address that accepts connections but does not answer
@@ -75,6 +81,8 @@ class Progress:
 
 def seed_task(job: SeedJob, progress, retries: int) -> Outcome:
     """One attempt at a seed, inside a Ray task."""
+    import ray
+
     attempt = ray.get(progress.begin.remote(job.seed))
 
     def emit(event: dict) -> None:
@@ -120,10 +128,33 @@ def probe_out(token: str, secret: str) -> str:
     return ""
 
 
-class RayExecutor(Executor):
-    name = "ray"
+OPTIONS = (
+    Option("--ray-address", "ray: the cluster's HOST:PORT as `ray start --head` prints it, or auto (default: "
+                            "$RAY_ADDRESS if set, else a local Ray started for this run)"),
+    Option("--cpus-per-seed", f"ray: CPUs each seed reserves, at least {MIN_CPUS_PER_SEED:g}; a node runs (its "
+                              f"CPUs / N) seeds at once (default: {DEFAULT_CPUS_PER_SEED:g})",
+           type=positive_float(f"a positive number of CPUs, at least {MIN_CPUS_PER_SEED:g} (the finest fraction Ray "
+                               "reserves)", at_least=MIN_CPUS_PER_SEED)),
+    Option("--retries", f"ray: how many times a seed is run again when its worker process or its node dies "
+                        f"(default: {DEFAULT_RETRIES})", type=int_at_least(0, "retries", 100)),
+)
 
-    def __init__(self, out, *, address: str | None, cpus_per_seed: float, retries: int):
+
+def check_options(options) -> str | None:
+    """The local executor's --workers has no meaning here (say what does instead)."""
+    if getattr(options, "workers", None) is not None:
+        return ("--workers applies to the local executor; with --executor ray each node runs as many seeds as its "
+                "CPUs allow (--cpus-per-seed)")
+    return None
+
+
+@register_executor("ray", "one Ray task per seed on a Ray cluster; --out must be a folder every node sees; "
+                          "docs/scale.md", options=OPTIONS, check=check_options)
+class RayExecutor(Executor):
+    def __init__(self, out, *, address: str | None, cpus_per_seed: float = DEFAULT_CPUS_PER_SEED,
+                 retries: int = DEFAULT_RETRIES):
+        import ray
+
         self.out = Path(out).resolve()
         self.cpus_per_seed, self.retries = cpus_per_seed, retries
         self.address = _connect(address)
@@ -139,7 +170,14 @@ class RayExecutor(Executor):
         self.attempts: dict[int, int] = {}
         self._slots, self._slots_at = 0, -1e9
 
+    @classmethod
+    def from_options(cls, out: Path, options) -> "RayExecutor":
+        return cls(out, address=options.ray_address, cpus_per_seed=options.cpus_per_seed or DEFAULT_CPUS_PER_SEED,
+                   retries=DEFAULT_RETRIES if options.retries is None else options.retries)
+
     def room(self) -> int:
+        import ray
+
         if time.monotonic() - self._slots_at > 5.0:
             self._slots = sum(int(n["Resources"].get("CPU", 0) // self.cpus_per_seed) for n in ray.nodes() if n["Alive"])
             self._slots_at = time.monotonic()
@@ -147,10 +185,12 @@ class RayExecutor(Executor):
 
     def submit(self, job: SeedJob) -> None:
         env = job.env | {k: v for k, v in os.environ.items() if k.startswith(self.FORWARDED_ENV_PREFIX)}
-        job = SeedJob(job.seed, str(self.out), job.config, job.replace, None, env)
+        job = replace(job, out=str(self.out), lock_fd=None, env=env)
         self.refs[self.task.remote(job, self.progress, self.retries)] = job
 
     def events(self, timeout: float) -> list[dict]:
+        import ray
+
         refs = list(self.refs)
         if refs:
             ready, _ = ray.wait(refs, num_returns=len(refs), timeout=timeout)
@@ -179,6 +219,8 @@ class RayExecutor(Executor):
     def cancel_all(self) -> None:
         """Cancel every task (its Ray worker is killed, and the seed's worker process with it),
         wait for them to end, then remove the partial folders they made."""
+        import ray
+
         for ref in self.refs:
             try:
                 ray.cancel(ref, force=True)
@@ -195,11 +237,15 @@ class RayExecutor(Executor):
         self.refs.clear()
 
     def close(self) -> None:
+        import ray
+
         ray.shutdown()
 
 
 def _failure(exc: Exception, attempts: int) -> str:
     """One line for a task that Ray gave up on."""
+    import ray
+
     first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
     if isinstance(exc, (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError,
                         ray.exceptions.OutOfMemoryError)):
@@ -213,6 +259,8 @@ def _connect(address: str | None) -> str:
     """Join the cluster at ``address`` (else RAY_ADDRESS, else start a local Ray); returns
     the address joined ('local' for a Ray started here). ExecutorError (one line) if no
     cluster answers."""
+    import ray
+
     source = "--ray-address" if address else "$RAY_ADDRESS"  # which one the user should mend
     address = address or os.environ.get("RAY_ADDRESS") or None
     if address and address.startswith("ray://"):
@@ -298,6 +346,9 @@ def _check_nodes(out: Path, cpus_per_seed: float, can_grow: bool = True) -> None
     naming the first node that cannot. When no node has ``cpus_per_seed`` CPUs: a warning on
     a cluster that nodes can join, an ExecutorError on the Ray started for this run (the
     seeds would wait forever)."""
+    import ray
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
     secret = uuid.uuid4().hex
     token = out / f".ray-probe-{os.getpid()}-{secret[:8]}"
     token.write_text(secret)

@@ -38,7 +38,9 @@ class SeedJob:
     """What to make: ``seed`` with ``config`` (RunConfig.to_dict()) into ``out`` (an absolute
     path every node sees); ``replace``: a complete seed there is replaced on commit;
     ``lock_fd``: the seed's lock descriptor, shared with the worker process (local only);
-    ``env``: variables added to the worker's environment."""
+    ``env``: variables added to the worker's environment; ``executor``: the name of the
+    executor that runs it, recorded in the manifest's timing (how this run went, not a
+    parameter: the seed's files are the same on every executor)."""
 
     seed: int
     out: str
@@ -46,6 +48,7 @@ class SeedJob:
     replace: bool = False
     lock_fd: int | None = None
     env: dict = field(default_factory=dict)
+    executor: str = ""
 
 
 @dataclass
@@ -117,7 +120,8 @@ def _produce(job: SeedJob, emit: Emit, started, out: Path, t0: float, work: fold
         emit({"event": "note", "message": note})
     env = {k: v for k, v in os.environ.items() if k != "OCIO"} | job.env | {PARENT_ENV: str(os.getpid())}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder)],
+        [sys.executable, "-m", "generator.batch.worker", json.dumps(job.config), str(job.seed), str(folder),
+         job.executor],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, cwd=ROOT,
         pass_fds=(work.fd,) if job.lock_fd is None else (work.fd, job.lock_fd))
     try:
