@@ -106,7 +106,7 @@ import dataclasses, hashlib, math
 import numpy as np
 from generator.geometry.boxes import upright_box
 from generator.scene.site import plan_site, site_params
-from generator.scene.vehicles import route_poses
+from generator.scene.catalogue.trucks import route_poses
 from trajectories import lawnmower, modified_random_walk, orbit, random_walk, spline_flythrough
 
 ours, numpys = hashlib.sha256(), hashlib.sha256()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from generator.scene import plan_site, site_params
-from generator.scene import props, structures, vehicles
+from generator.scene.catalogue import cabins, cranes, excavators, stacks, toilets, trucks
 from generator.scene.meshes import rotation_x, rotation_y, rotation_z
 from generator.scene.site import PRESETS
 
@@ -70,7 +70,7 @@ def plans():
 def test_cabin_stair_above_ground():
     stacked = 0
     for seed in range(40):
-        asset = props.cabin_block(np.random.default_rng(seed))
+        asset = cabins.cabin_block(np.random.default_rng(seed))
         stacked += len(asset.parts) in (3, 5)  # cabins two high, and the stair
         assert min(v[:, 2].min() for _, v, _ in _world(asset)) >= 0.0, seed
     assert stacked > 0  # stairs were built
@@ -87,7 +87,7 @@ def test_planned_sites_stay_above_ground(plans):
 # 2. portable toilets are the reference size and neighbours do not overlap
 def test_toilets_do_not_overlap():
     for seed in range(20):
-        asset = props.portable_toilets(np.random.default_rng(seed))
+        asset = toilets.portable_toilets(np.random.default_rng(seed))
         ranges = []
         for _, v, mesh in _world(asset):
             white = _material_vertices(mesh, "plastic_white")
@@ -105,7 +105,7 @@ def test_toilets_do_not_overlap():
 # 3. the excavator's upper body sits on its slewing ring; cab top about 3 m
 def test_excavator_body_on_ring():
     for seed in range(5):
-        asset = vehicles.excavator(np.random.default_rng(seed), 20, 10.0)
+        asset = excavators.excavator(np.random.default_rng(seed), 20, 10.0)
         world = dict((i, v) for i, v, _ in _world(asset))
         ring_top = world[0][:, 2].max()
         assert abs(world[1][:, 2].min() - ring_top) < 1e-9
@@ -134,7 +134,7 @@ def test_truck_sizes_by_kind():
     route = np.array([[0, 0], [100, 0], [100, 100], [0, 100]], float)
     for kind, (lo, hi), (h_lo, h_hi) in (("dump", (8.0, 9.0), (3.25, 3.35)), ("mixer", (9.0, 10.0), (3.8, 4.0))):
         for seed in range(10):
-            asset = vehicles.truck(np.random.default_rng(seed), kind, route, 4.0, 10.0, 20, 10.0)
+            asset = trucks.truck(np.random.default_rng(seed), kind, route, 4.0, 10.0, 20, 10.0)
             assert lo <= asset.size[0] <= hi
             v = np.concatenate([v for _, v, _ in _world(asset)])
             assert asset.size[0] - 0.6 <= np.ptp(v[:, 0]) <= asset.size[0] + 1e-9
@@ -143,15 +143,15 @@ def test_truck_sizes_by_kind():
                 tipper = _material_vertices(asset.parts[0].mesh, "truck_paint")
                 tipper = tipper[tipper[:, 0] < asset.size[0] / 2 - 2.4]  # behind the cab
                 assert 4.4 <= np.ptp(tipper[:, 0]) <= 5.6
-    a = vehicles.truck(np.random.default_rng(3), "mixer", route, 4.0, 10.0, 20, 10.0)
-    b = vehicles.truck(np.random.default_rng(3), "mixer", route, 4.0, 10.0, 20, 10.0)
+    a = trucks.truck(np.random.default_rng(3), "mixer", route, 4.0, 10.0, 20, 10.0)
+    b = trucks.truck(np.random.default_rng(3), "mixer", route, 4.0, 10.0, 20, 10.0)
     assert all(np.array_equal(p.mesh.vertices, q.mesh.vertices) for p, q in zip(a.parts, b.parts) if p.mesh is not None)
 
 
 # 6. crane counterweights are slabs between the counter-jib's chords and railings
 def test_crane_counterweights_fit_counter_jib():
     for seed in range(6):
-        asset = structures.tower_crane(np.random.default_rng(seed), 20.0, 30.0, 20, 10.0)
+        asset = cranes.tower_crane(np.random.default_rng(seed), 20.0, 30.0, 20, 10.0)
         info = asset.info
         jib_h = info["top"] - 0.07 - info["mast_top"] - 1.0
         slew = asset.parts[2].mesh
@@ -166,7 +166,7 @@ def test_crane_counterweights_fit_counter_jib():
 # 7. rebar bundles are 0.3-0.5 m across
 def test_rebar_bundles_across():
     for seed in range(10):
-        asset = props.rebar_bundles(np.random.default_rng(seed))
+        asset = stacks.rebar_bundles(np.random.default_rng(seed))
         count = int(round((asset.size[1] - 0.2) / 0.6))
         v = _material_vertices(asset.parts[0].mesh, "rebar")
         for c in range(count):
@@ -188,7 +188,7 @@ def test_docs_state_minimums_and_fallback():
 # ground face straight down, so the ground-contact rule drops them
 def test_pipes_rest_on_a_flat_facet():
     for seed in range(8):
-        mesh = props.pipe_stack(np.random.default_rng(seed)).parts[0].mesh
+        mesh = stacks.pipe_stack(np.random.default_rng(seed)).parts[0].mesh
         pipe = [mesh.materials.index(m) for m in ("concrete", "steel_rust") if m in mesh.materials][0]
         quads = mesh.vertices[mesh.quads[mesh.face_material[:len(mesh.quads)] == pipe]]
         z0 = quads[:, :, 2].min()

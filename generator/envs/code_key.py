@@ -16,7 +16,8 @@ PACKAGE = "generator"  # absolute imports of this name resolve under the package
 def import_closure(root: Path, entries: tuple[str, ...]) -> list[Path]:
     """Sorted ``.py`` files under ``root`` (the package folder) that the ``entries`` (paths
     relative to ``root``) import, directly or through each other, with every imported
-    package's ``__init__.py``; imports anywhere in a file count (inside functions too).
+    package's ``__init__.py`` and every module of a package that sets ``SCANNED = True``
+    (loaded by name at run time); imports anywhere in a file count (inside functions too).
     A missing entry is a FileNotFoundError."""
     root = Path(root)
     todo = []
@@ -32,7 +33,21 @@ def import_closure(root: Path, entries: tuple[str, ...]) -> list[Path]:
             continue
         seen.add(path)
         todo.extend(_imported_files(root, path))
+        todo.extend(_scanned_modules(path))
     return sorted(seen)
+
+
+def _scanned_modules(path: Path) -> list[Path]:
+    """Every module of the package whose ``__init__.py`` is ``path``, if it sets
+    ``SCANNED = True``: its modules are imported by name at run time (pkgutil, e.g. the asset
+    catalogue), which no import statement shows."""
+    if path.name != "__init__.py":
+        return []
+    for node in ast.parse(path.read_bytes(), filename=str(path)).body:
+        if (isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "SCANNED" for t in node.targets)
+                and isinstance(node.value, ast.Constant) and node.value.value is True):
+            return sorted(path.parent.glob("*.py"))
+    return []
 
 
 def _imported_files(root: Path, path: Path) -> list[Path]:

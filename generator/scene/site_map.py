@@ -2,21 +2,20 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+from .kinds import kind as kind_named
 from .site import SitePlan
 from .taxonomy import CLASS_COLORS
 
-GROUP_CLASS = {"RebarBundle": "Rebar"}
-
 
 def draw_map(plan: SitePlan, path: str | Path, pixels_per_metre: float | None = None, trajectory: np.ndarray | None = None) -> Path:
-    """Draw footprints (class colours), the road and truck route, crane jib circles and the
-    fence; optionally a camera trajectory (K, 2 or 3) in world metres. North (+y) is up."""
+    """Draw footprints (their kind's class colours), the road and truck route, the circles of
+    crane jibs (assets with a ``jib_length``), the start of every asset that drives (a square)
+    and the fence; optionally a camera trajectory (K, 2 or 3) in world metres. North (+y) is up."""
     size = plan.params.size
     ppm = pixels_per_metre or max(4.0, 800.0 / size)
     w = int(size * ppm) + 40
@@ -33,21 +32,22 @@ def draw_map(plan: SitePlan, path: str | Path, pixels_per_metre: float | None = 
         draw.line(road, fill=(240, 240, 240), width=1)
     for a, b in plan.fence_runs:
         draw.line(px([a, b]), fill=(90, 90, 100), width=2)
+    def colour(placed):
+        return CLASS_COLORS.get(kind_named(placed.asset.kind).label, (0, 0, 0))
+
     for placed in plan.placed:
-        kind = placed.asset.kind
-        colour = CLASS_COLORS.get(GROUP_CLASS.get(kind, kind), (0, 0, 0))
         if placed.asset.moves:
             continue
-        if kind == "Crane":
+        if "jib_length" in placed.asset.info:
             r = placed.asset.info["jib_length"] * ppm
             cx, cy = px(placed.position)[0]
-            draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=CLASS_COLORS["Crane"], width=1)
-        draw.polygon(px(placed.footprint.corners()), fill=colour, outline=(40, 40, 40))
+            draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=colour(placed), width=1)
+        draw.polygon(px(placed.footprint.corners()), fill=colour(placed), outline=(40, 40, 40))
     for placed in plan.placed:
         if placed.asset.moves and placed.asset.parts[0].keys is not None:
             start = placed.asset.parts[0].keys.location[0]
             cx, cy = px(start[:2])[0]
-            draw.rectangle((cx - 4, cy - 4, cx + 4, cy + 4), fill=CLASS_COLORS["Truck"], outline=(0, 0, 0))
+            draw.rectangle((cx - 4, cy - 4, cx + 4, cy + 4), fill=colour(placed), outline=(0, 0, 0))
     if trajectory is not None and len(trajectory) > 1:
         draw.line(px(trajectory), fill=(200, 0, 0), width=2)
         cx, cy = px(trajectory[0])[0]

@@ -2,17 +2,17 @@
 
 Stage 0 is the seed's plan. Stage k is stage k - 1 changed by deltas drawn from stage k's
 own random streams (``stream(seed, "timeline", k, ...)``), so nothing unrelated is drawn
-again and everything a delta does not touch keeps its geometry, its place and its name:
+again and everything a delta does not touch keeps its geometry, its place and its name.
+What a kind does between stages is its catalogue entry's ``stage`` rule (one of the rules
+below; docs/scenes.md, "The asset catalogue", lists them per kind):
 
-- buildings grow: one or two floors of frame a stage until the planned height, the brick
-  infill two floors behind, then the remaining facades one floor a stage; the rebar and
-  formwork on the top slab climb with it and the scaffolding gains lifts;
-- tower cranes slew (a new heading, the same slewing motion);
-- material stacks and piles are consumed (removed), moved, or a pallet of a row is used;
-  new ones are delivered; a new container stack may arrive in the band along the fence;
-- excavators are parked elsewhere, groups of workers walk elsewhere;
-- the ground, fence, road, trucks, cabins, toilets, generators, skips, barriers and cones
-  stay as they are.
+- :class:`Rebuilt`: the kind's planner builds each stage's state itself (buildings grow,
+  tower cranes slew);
+- :class:`Consumed`: material stacks and piles are used up (removed), moved, or a part of a
+  row is used; the first release's materials are also delivered anew each stage;
+- :class:`Relocates`: excavators are parked elsewhere, groups of workers walk elsewhere;
+- :class:`Arrives`: a new one may arrive (a container stack, in the band along the fence);
+- no rule: the kind stays as it is (the ground, fence, road, trucks, cabins, ...).
 
 Every placement is checked like the stage-0 plan's (no overlapping footprints, nothing on the
 road). Objects keep one name over the timeline (:func:`object_name`), which is how their
@@ -21,21 +21,19 @@ instance ids map between stages (docs/phases.md).
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..checks import check_integer
 from ..geometry.seeding import stream
-from . import props, structures
 from .assets import Asset
+from .kinds import all_kinds, kind as kind_named
+from .placement import PlacedAsset, Placer, SiteArea, band_candidates, footprint_at, near_then_anywhere
 
 MAX_STAGES = 16
-MATERIALS = ("SandPile", "GravelPile", "BrickPallet", "PipeStack", "TimberStack", "RebarBundle")
-P_CONSUMED, P_MOVED, P_PALLET_USED = 0.12, 0.12, 0.2  # per material asset and stage
-P_EXCAVATOR_MOVES, P_WORKERS_MOVE, P_CONTAINER, P_SLEW = 0.7, 0.5, 0.5, 0.8
 DELIVERIES = (1, 2)  # new material assets per stage (inclusive)
-DELIVERY_UID = 1_000_000  # uid of the j-th delivery of stage k: k * DELIVERY_UID + j
+DELIVERY_UID = 1_000_000  # uid of the j-th delivery of stage k: k * DELIVERY_UID + j (arrivals: + their slot)
 
 
 def check_stage(stage, stages) -> None:
@@ -50,133 +48,186 @@ def object_name(label: str, uid: int, part: int) -> str:
     return f"{label}.{uid}{part:04d}"
 
 
-def building_schedule(seed: int, index: int, own_built: int, planned: int, stage: int) -> tuple[int, int]:
-    """(floors built, floors enclosed) of building ``index`` at ``stage``, from its stage-0
-    state: each stage adds 1-2 floors of frame (infill two floors behind) until ``planned``,
-    then one more enclosed floor a stage."""
-    built, enclosed = own_built, max(0, own_built - 2)
-    for s in range(1, stage + 1):
-        r = stream(seed, "timeline", s, "Building", index)
-        if built < planned:
-            built = min(planned, built + int(r.integers(1, 3)))
-            enclosed = max(enclosed, built - 2)
-        else:
-            enclosed = min(built, enclosed + 1)
-    return built, enclosed
+@dataclass
+class StageStep:
+    """Stage ``s`` being made from the previous one: the ``plan`` (changed in place), where
+    props go (``area``) and the stage's shared stream ``rng`` (first-release kinds only)."""
 
+    plan: object  # SitePlan
+    s: int
+    area: SiteArea
+    rng: np.random.Generator
 
-def grow_buildings(plan, buildings: list, stage: int) -> None:
-    """Replace each placed building's asset by its state at ``stage`` (same place)."""
-    for placed in buildings:
-        k, phase, max_length = placed.asset.info["design"]
-        base = _building(plan, k, phase, max_length, None)
-        built, enclosed = building_schedule(plan.seed, k, base.info["floors_built"], base.info["floors_planned"], stage)
-        growth = structures.Growth(built, enclosed, lambda f, k=k: stream(plan.seed, "asset", "Building", k, "floor", f))
-        placed.asset = _building(plan, k, phase, max_length, growth)
+    def placer(self, moving: PlacedAsset | None = None) -> Placer:
+        taken = [p.footprint for p in self.plan.placed if p is not moving and not p.asset.moves]
+        return Placer(self.plan.params.size / 2 - 1.0, self.plan.reserved + taken)
 
-
-def _building(plan, k: int, phase: float, max_length: float, growth) -> Asset:
-    brng = stream(plan.seed, "asset", "Building", k)
-    if plan.params.phase is None:
-        brng.uniform(0.25, 1.0)  # the phase draw of site.plan_site
-    asset = structures.building(brng, phase, plan.params.floors, max_length=max_length, growth=growth)
-    asset.info["design"] = (k, phase, max_length)
-    return asset
-
-
-def slew_offset(seed: int, crane: int, stage: int) -> float:
-    """Heading (radians) crane ``crane`` has turned by at ``stage`` from stage 0."""
-    offset = 0.0
-    for s in range(1, stage + 1):
-        r = stream(seed, "timeline", s, "Crane", crane)
-        if r.random() < P_SLEW:
-            offset = float(r.uniform(0.0, 2 * math.pi))
-    return offset
-
-
-def advance(plan, inner: float, band: tuple[float, float], centres: np.ndarray) -> None:
-    """Apply the deltas of stages 1..plan.stage to the stage-0 ``plan`` (in place)."""
-    for s in range(1, plan.stage + 1):
-        _stage_deltas(plan, s, inner, band, centres)
-
-
-def _placer(plan, moving=None):
-    from .site import _Placer
-
-    taken = [p.footprint for p in plan.placed if p is not moving and not p.asset.moves]
-    return _Placer(plan.params.size / 2 - 1.0, plan.reserved + taken)
-
-
-def _relocate(plan, placed, cands) -> bool:
-    """Move ``placed`` to the first candidate whose footprint is free; False if none is."""
-    from .site import _footprint
-
-    placer = _placer(plan, moving=placed)
-    for (x, y), yaw in cands:
-        fp = _footprint(placed.asset, (x, y), yaw)
-        if placer.fits(fp):
-            placed.position, placed.yaw, placed.footprint = (float(x), float(y)), float(yaw), fp
-            return True
-    return False
-
-
-def _add(plan, asset: Asset, cands, uid: int) -> bool:
-    from .site import PlacedAsset
-
-    placed = _placer(plan).try_place(asset, cands)
-    if placed is None:
+    def relocate(self, placed: PlacedAsset, candidates) -> bool:
+        """Move ``placed`` to the first candidate whose footprint is free; False if none is."""
+        placer = self.placer(moving=placed)
+        for (x, y), yaw in candidates:
+            fp = footprint_at(placed.asset, (x, y), yaw)
+            if placer.fits(fp):
+                placed.position, placed.yaw, placed.footprint = (float(x), float(y)), float(yaw), fp
+                return True
         return False
-    placed.uid = uid
-    plan.placed.append(placed)
-    return True
+
+    def add(self, asset: Asset, candidates, uid: int) -> bool:
+        """Place a new ``asset`` (identity ``uid``) at the first free candidate; False if none is."""
+        placed = self.placer().try_place(asset, candidates)
+        if placed is None:
+            return False
+        placed.uid = uid
+        self.plan.placed.append(placed)
+        return True
+
+    def remove(self, placed: PlacedAsset) -> None:
+        self.plan.placed[:] = [p for p in self.plan.placed if p is not placed]
+
+    def skip(self, name: str) -> None:
+        """Count an asset the stage could not place (site.json's ``skipped``, cumulative over stages)."""
+        self.plan.skipped[name] = self.plan.skipped.get(name, 0) + 1
 
 
-def _stage_deltas(plan, s: int, inner: float, band: tuple[float, float], centres: np.ndarray) -> None:
-    from .site import PROP_KINDS, _band_candidates, _candidates
+class StageRule:
+    """What a kind does between stages: ``change`` each placed one (``u`` a uniform draw,
+    ``move`` the asset's own stream for this stage), ``arrive`` new ones once a stage."""
 
-    seed, layout = plan.seed, plan.params.layout
-    rng = stream(seed, "timeline", s, "site")
-    for placed in sorted(plan.placed, key=lambda p: p.uid):
-        kind = placed.asset.kind
-        u = rng.random()
+    def change(self, step: StageStep, placed: PlacedAsset, u: float, move: np.random.Generator) -> None:
+        pass
+
+    def arrive(self, step: StageStep, kind) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class Rebuilt(StageRule):
+    """The kind's planner builds the state of the plan's stage itself (``what`` changes)."""
+
+    what: str
+
+
+@dataclass(frozen=True)
+class Consumed(StageRule):
+    """Each stage, with probability ``consumed`` it is used up (removed), else with
+    ``moved`` it is moved elsewhere inside the road loop, else with ``part_used`` the last
+    part of a row is used up (the footprint stays). ``delivered``: new ones of the kind are
+    among the stage's deliveries (first-release kinds of the prop mix, by their mix weight)."""
+
+    consumed: float
+    moved: float
+    part_used: float = 0.0
+    delivered: bool = False
+
+    def change(self, step, placed, u, move):
+        if u < self.consumed:
+            step.remove(placed)
+        elif u < self.consumed + self.moved:
+            step.relocate(placed, step.area.inside(move, 60))
+        elif u < self.consumed + self.moved + self.part_used and len(placed.asset.parts) > 1:
+            a = placed.asset
+            placed.asset = Asset(a.kind, a.parts[:-1], a.size, a.placement, a.moves, dict(a.info), a.footprint_from_geometry)
+
+
+@dataclass(frozen=True)
+class Relocates(StageRule):
+    """With probability ``p`` a stage, it moves: inside the road loop following the layout,
+    or, if ``near``, anywhere inside then near its old spot (a big machine on a crowded site)."""
+
+    p: float
+    near: bool = False
+
+    def change(self, step, placed, u, move):
+        if u < self.p:
+            if self.near:
+                step.relocate(placed, near_then_anywhere(move, placed.position, step.area.inner))
+            else:
+                step.relocate(placed, step.area.inside(move, 60))
+
+
+@dataclass(frozen=True)
+class Arrives(StageRule):
+    """With probability ``p`` a stage, a new one arrives: in the band along the fence if
+    ``band`` (none arrives on a site without one), else inside the road loop. Its uid is
+    ``stage * DELIVERY_UID + slot`` (a slot of its own, at least DELIVERIES[1]). A first-release
+    kind draws the arrival from the stage's shared stream and builds from the stage's
+    ``stream`` name; a new kind draws both from ``("arrival", name)``."""
+
+    p: float
+    slot: int
+    band: bool = False
+    stream: str | None = None
+
+    def arrive(self, step, kind):
+        seed, s = step.plan.seed, step.s
+        if kind.shared_streams:
+            comes, rng = step.rng.random() < self.p, None
+        else:
+            rng = stream(seed, "timeline", s, "arrival", kind.name)
+            comes = rng.random() < self.p
+        if not comes or (self.band and not step.area.has_band):
+            return
+        if rng is None:
+            rng = stream(seed, "timeline", s, self.stream or kind.name)
+        asset = kind.make(rng, step.plan.params.frames, step.plan.params.fps)
+        band = step.area.band
+        cands = band_candidates(rng, band[0], band[1], 60) if self.band else step.area.inside(rng, 60)
+        if not step.add(asset, cands, s * DELIVERY_UID + self.slot):
+            step.skip("Delivery")
+
+
+MATERIAL_STOCK = Consumed(consumed=0.12, moved=0.12, delivered=True)  # the first release's material stacks and piles
+
+
+def advance(plan, area: SiteArea) -> None:
+    """Apply the deltas of stages 1..plan.stage to the stage-0 ``plan`` (in place)."""
+    kinds = all_kinds()
+    _check_slots(kinds)
+    for s in range(1, plan.stage + 1):
+        step = StageStep(plan, s, area, stream(plan.seed, "timeline", s, "site"))
+        _changes(step)
+        _deliveries(step, [k for k in kinds if isinstance(k.stage, Consumed) and k.stage.delivered])
+        for k in kinds:
+            if k.stage is not None:
+                k.stage.arrive(step, k)
+
+
+def _changes(step: StageStep) -> None:
+    """Each placed asset's stage rule, in uid order; every first-release asset draws one
+    number from the shared stream whatever its rule (so the draws stay in step)."""
+    seed, s = step.plan.seed, step.s
+    for placed in sorted(step.plan.placed, key=lambda p: p.uid):
+        kind = kind_named(placed.asset.kind)
+        u = step.rng.random() if kind.shared_streams else stream(seed, "timeline", s, "change", placed.uid).random()
         move = stream(seed, "timeline", s, "move", placed.uid)
-        if kind in MATERIALS:
-            if u < P_CONSUMED:
-                plan.placed[:] = [p for p in plan.placed if p is not placed]
-            elif u < P_CONSUMED + P_MOVED:
-                _relocate(plan, placed, _candidates(move, layout, -inner, inner, 60, centres))
-            elif u < P_CONSUMED + P_MOVED + P_PALLET_USED and kind == "BrickPallet" and len(placed.asset.parts) > 1:
-                a = placed.asset  # the last pallet of the row is used up; the footprint stays
-                placed.asset = Asset(a.kind, a.parts[:-1], a.size, a.placement, a.moves, dict(a.info), a.footprint_from_geometry)
-        elif kind == "Excavator" and u < P_EXCAVATOR_MOVES:
-            _relocate(plan, placed, _near_then_anywhere(move, placed.position, inner))
-        elif kind == "Worker" and u < P_WORKERS_MOVE:
-            _relocate(plan, placed, _candidates(move, layout, -inner, inner, 60, centres))
-    builders = {name: (build, weight) for name, build, weight, _ in PROP_KINDS if name in MATERIALS}
-    weights = np.array([builders[m][1] for m in MATERIALS], dtype=float)
-    for j in range(int(rng.integers(DELIVERIES[0], DELIVERIES[1] + 1))):
-        name = MATERIALS[int(rng.choice(len(MATERIALS), p=weights / weights.sum()))]
-        drng = stream(seed, "timeline", s, "delivery", j)
-        if not _add(plan, builders[name][0](drng), _candidates(drng, layout, -inner, inner, 60, centres),
-                    s * DELIVERY_UID + j):
-            _skipped(plan, "Delivery")
-    if rng.random() < P_CONTAINER and band[1] - band[0] > 3.0:
-        crng = stream(seed, "timeline", s, "container")
-        if not _add(plan, props.container_stack(crng), _band_candidates(crng, band[0], band[1], 60),
-                    s * DELIVERY_UID + 999):
-            _skipped(plan, "Delivery")
+        if kind.stage is not None:
+            kind.stage.change(step, placed, u, move)
 
 
-def _skipped(plan, kind: str) -> None:
-    """Count an asset the stage could not place (site.json's ``skipped``, cumulative over stages)."""
-    plan.skipped[kind] = plan.skipped.get(kind, 0) + 1
+def _deliveries(step: StageStep, delivered: list) -> None:
+    """1-2 new material assets a stage, each kind drawn by its mix weight (shared stream)."""
+    strangers = [k.name for k in delivered if not k.shared_streams]
+    if strangers:
+        raise ValueError(f"asset kind(s) {', '.join(strangers)} joined the shared deliveries; a new kind arrives "
+                         "with its own Arrives rule")
+    count = int(step.rng.integers(DELIVERIES[0], DELIVERIES[1] + 1))
+    if not delivered:
+        return
+    weights = np.array([k.place.weight for k in delivered], dtype=float)
+    for j in range(count):
+        kind = delivered[int(step.rng.choice(len(delivered), p=weights / weights.sum()))]
+        rng = stream(step.plan.seed, "timeline", step.s, "delivery", j)
+        asset = kind.make(rng, step.plan.params.frames, step.plan.params.fps)
+        if not step.add(asset, step.area.inside(rng, 60), step.s * DELIVERY_UID + j):
+            step.skip("Delivery")
 
 
-def _near_then_anywhere(rng: np.random.Generator, position, inner: float, n: int = 150):
-    """Candidate ((x, y), yaw): ``n`` anywhere inside the road loop, then ``n`` within a
-    few metres of ``position`` (a crowded site has room for a big machine near its old spot)."""
-    for _ in range(n):
-        yield tuple(rng.uniform(-inner, inner, 2)), float(rng.uniform(0, 2 * math.pi))
-    for _ in range(n):
-        xy = np.clip(np.asarray(position) + rng.normal(0.0, 4.0, 2), -inner, inner)
-        yield tuple(xy), float(rng.uniform(0, 2 * math.pi))
+def _check_slots(kinds: list) -> None:
+    slots: dict[int, str] = {}
+    for k in kinds:
+        if isinstance(k.stage, Arrives):
+            slot = k.stage.slot
+            if not DELIVERIES[1] <= slot < DELIVERY_UID or slot in slots:
+                raise ValueError(f"asset kind {k.name!r}: arrival slot {slot} is taken ({slots.get(slot, 'deliveries')}) "
+                                 f"or outside [{DELIVERIES[1]}, {DELIVERY_UID}); pick a free one")
+            slots[slot] = k.name

@@ -1,19 +1,24 @@
-"""Trucks that drive along routes with rolling wheels, and excavators that dig."""
+"""Trucks (three-axle dump trucks and concrete mixers) driving the site's road loop with
+rolling wheels; they stay as they are over a timeline's stages."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.camera import matmul_exact, rows_times
-from ..geometry.portable_math import atan2, sincos
-from .assets import Asset, Keyframes, Part
-from .meshes import MeshBuilder, rotation_y
+from ...geometry.portable_math import atan2, sincos
+from ...geometry.seeding import stream
+from ..assets import Asset, Footprint, Keyframes, Part
+from ..kinds import AssetKind, register
+from ..materials import Material, Pattern
+from ..meshes import MeshBuilder, rotation_y
+from ..placement import PlacedAsset
+from ..planning import Custom
 
 WHEEL_R = 0.525
 WHEEL_W = 0.4
 
 
-def _wheel() -> MeshBuilder:
+def wheel() -> MeshBuilder:
     """A wheel centred on its origin, axle along local y."""
     w = MeshBuilder()
     core = WHEEL_R - 0.02
@@ -111,7 +116,7 @@ def truck(rng: np.random.Generator, kind: str, route: np.ndarray, speed: float, 
     for x in (cab_x + 0.1, -length / 2 + 2.2, -length / 2 + 0.85):
         for s in (-1, 1):
             y = s * (1.25 - WHEEL_W / 2)
-            parts.append(Part("Truck", _wheel().build(), location=(x, y, WHEEL_R), parent=0,
+            parts.append(Part("Truck", wheel().build(), location=(x, y, WHEEL_R), parent=0,
                               keys=Keyframes(key_frames, rotation=np.column_stack([np.zeros(len(spin)), spin, np.zeros(len(spin))]))))
     if drum_part is not None:
         drum_spin = np.linspace(0, rng.uniform(0.2, 0.4) * 2 * np.pi * (frames - 1) / fps, 2)  # 12-24 rpm
@@ -121,79 +126,25 @@ def truck(rng: np.random.Generator, kind: str, route: np.ndarray, speed: float, 
     return Asset("Truck", parts, (length, 2.5), placement=None, moves=True, info={"kind": kind, "speed_m_s": speed})
 
 
-def _excavator_bucket_lowest(boom, arm, bucket, geom) -> float:
-    """Lowest z (metres) of the bucket for boom/arm/bucket angles (radians), by forward
-    kinematics with the same rotations as the keyframes (boom about y by -angle, arm and
-    bucket by +angle); swinging about z does not change heights."""
-    pivot = np.array(geom["pivot_world"])
-    lowest = np.inf
-    for b, a, c in zip(boom, arm, bucket):
-        r1 = rotation_y(-b)
-        p_arm = pivot + rows_times(np.array([geom["boom"], 0, 0]), r1.T)  # r1 @ v, without BLAS
-        r2 = matmul_exact(r1, rotation_y(a))
-        p_bucket = p_arm + rows_times(np.array([geom["arm"], 0, 0]), r2.T)
-        r3 = matmul_exact(r2, rotation_y(c))
-        for corner in ((1.1, 0, -0.6), (0, 0, -0.8), (1.1, 0, 0.2)):
-            lowest = min(lowest, (p_bucket + rows_times(np.array(corner, dtype=np.float64), r3.T))[2])
-    return lowest
+def plan_trucks(site, kind: AssetKind) -> None:
+    """Trucks on the road loop, evenly spaced, all at one speed (so they never catch up)."""
+    plan, params = site.plan, site.params
+    n_trucks = site.count(kind)
+    perimeter = float(np.sum(np.linalg.norm(np.diff(np.vstack([plan.road, plan.road[:1]]), axis=0), axis=1)))
+    speed = float(site.rng.uniform(3.0, 5.0))
+    for k in range(n_trucks):
+        trng = stream(site.seed, "asset", kind.name, k)
+        offset = perimeter * k / max(n_trucks, 1) + float(trng.uniform(0, 0.2 * perimeter / max(n_trucks, 1)))
+        body = "dump" if trng.random() < 0.5 else "mixer"
+        asset = truck(trng, body, plan.road, speed, offset, params.frames, params.fps)
+        plan.placed.append(PlacedAsset(asset, (0.0, 0.0), 0.0, Footprint((0.0, 0.0), (0.0, 0.0))))
 
 
-def excavator(rng: np.random.Generator, frames: int, fps: float) -> Asset:
-    """A 20 t hydraulic excavator on tracks (4.5 m x 2.8 m): its upper body swings back and
-    forth and its boom, arm and bucket go through a digging cycle above the ground."""
-    tracks = MeshBuilder()
-    for s in (-1, 1):
-        y = s * 1.1
-        tracks.box((3.6, 0.6, 0.9), (0, y, 0.45), material="steel_dark")
-        for x in (-1.8, 1.8):
-            tracks.cylinder(0.45, (x, y - 0.3, 0.45), (x, y + 0.3, 0.45), segments=16, material="steel_dark")
-    tracks.box((2.6, 1.6, 0.3), (0, 0, 0.9), material="steel_dark")  # undercarriage frame
-    tracks.cylinder(1.0, (0, 0, 1.0), (0, 0, 1.1), segments=20, material="steel_dark")  # slewing ring
-
-    # the upper body sits on the slewing ring (its origin is the ring's top); cab top 3.0 m
-    upper = MeshBuilder()
-    upper.box((3.0, 2.5, 0.9), (-0.5, 0, 0.45), material="excavator_paint")
-    upper.box((1.0, 2.5, 1.1), (-1.9, 0, 0.55), material="excavator_paint")  # counterweight
-    upper.box((1.6, 0.95, 1.9), (0.4, 0.72, 0.95), material="excavator_paint")  # cab
-    upper.box((0.05, 0.8, 1.0), (1.21, 0.72, 1.3), material="glass")
-    upper.cylinder(0.08, (-1.2, -0.8, 0.9), (-1.2, -0.8, 1.9), segments=8, material="steel_dark")  # exhaust
-    body_z = 1.1  # upper body origin above the ground: the slewing ring's top
-    pivot = (1.0, -0.35, 0.6)  # boom foot in the upper body's frame
-    geom = {"pivot_world": (pivot[0], pivot[1], body_z + pivot[2]), "boom": rng.uniform(5.2, 5.8), "arm": rng.uniform(2.6, 3.0)}
-    boom = MeshBuilder().box((geom["boom"], 0.5, 0.6), (geom["boom"] / 2, 0, 0), material="excavator_paint")
-    arm = MeshBuilder().box((geom["arm"], 0.35, 0.45), (geom["arm"] / 2, 0, 0), material="excavator_paint")
-    bucket = MeshBuilder()
-    bucket.prism([(0, 0.2), (0.2, -0.6), (1.1, -0.7), (1.1, 0.2)], 1.0, material="steel_dark")
-
-    n = 6
-    key_frames = np.linspace(1, frames, n).round().astype(int)
-    boom_a = np.radians(rng.uniform(15, 45, n))
-    arm_a = np.radians(rng.uniform(60, 110, n))
-    bucket_a = np.radians(rng.uniform(20, 90, n))
-    # keep the bucket at least 0.3 m above the ground over the whole cycle (sampled finely)
-    fine = np.linspace(0, 1, 60)
-
-    def sampled(a):
-        return np.interp(fine, np.linspace(0, 1, n), a)
-
-    for _ in range(40):
-        if _excavator_bucket_lowest(sampled(boom_a), sampled(arm_a), sampled(bucket_a), geom) >= 0.3:
-            break
-        boom_a = np.minimum(boom_a + np.radians(3), np.radians(60))
-        arm_a = np.maximum(arm_a - np.radians(3), np.radians(30))
-    swing = np.radians(rng.uniform(-40, 40, n))
-    zeros = np.zeros(n)
-    parts = [
-        Part("Excavator", tracks.build()),
-        Part("Excavator", upper.build(), location=(0, 0, body_z), parent=0,
-             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, zeros, swing]))),
-        Part("Excavator", boom.build(), location=pivot, parent=1,
-             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, -boom_a, zeros]))),
-        Part("Excavator", arm.build(), location=(geom["boom"], 0, 0), parent=2,
-             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, arm_a, zeros]))),
-        Part("Excavator", bucket.build(), location=(geom["arm"], 0, 0), parent=3,
-             keys=Keyframes(key_frames, rotation=np.column_stack([zeros, bucket_a, zeros]))),
-    ]
-    reach = 1.0 + geom["boom"] + geom["arm"] + 1.2
-    lowest = _excavator_bucket_lowest(sampled(boom_a), sampled(arm_a), sampled(bucket_a), geom)
-    return Asset("Excavator", parts, (2 * reach, 2 * reach), info={"reach": reach, "bucket_lowest_z": lowest})
+register(AssetKind(
+    name="Truck", classes=("Truck",), build=truck, place=Custom(plan_trucks), order=40, count_param="trucks",
+    counts={"small": (1, 1), "medium": (2, 3), "large": (3, 5)},
+    materials=(Material("truck_paint", (0.7, 0.25, 0.03), 0.35, 0.3, Pattern(4.0, (0.3, 0.22, 0.15), 0.2)),
+               Material("mixer_drum", (0.75, 0.75, 0.72), 0.4, 0.3, Pattern(5.0, (0.45, 0.42, 0.38), 0.4))),
+    motion="drives the road loop at the site's one truck speed (3-5 m/s), wheels rolling; a mixer's drum turns at 12-24 rpm",
+    shared_streams=True,
+))

@@ -1,0 +1,28 @@
+"""The site's ground: one flat top surface, wider than the site (added by the Blender build
+to every site; not placed by the plan)."""
+
+from __future__ import annotations
+
+from ..assets import Part
+from ..kinds import AssetKind, register
+from ..materials import Material, Pattern
+from ..meshes import MeshBuilder
+
+GROUND_MARGIN = 20.0  # metres of ground beyond the site's edge on every side (seen from the spawn volume)
+
+
+def ground_part(size: float) -> Part:
+    """The ground: one flat top surface at z = 0 (two triangles, normal up), ``GROUND_MARGIN``
+    metres wider than the site on every side. It has no underside and no sides below
+    grade: nothing a camera above it could see (docs/scenes.md)."""
+    h = size / 2 + GROUND_MARGIN
+    verts = [(-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0)]  # counter-clockwise seen from above
+    return Part("Ground", MeshBuilder().add(verts, quads=[(0, 1, 2, 3)], material="ground").build())
+
+
+register(AssetKind(
+    name="Ground", classes=("Ground",), build=ground_part, order=0,
+    materials=(Material("ground", (0.23, 0.18, 0.12), 0.9, 0.0, Pattern(0.15, (0.12, 0.1, 0.08), 0.6),
+                        roughness_range=(0.5, 1.0), specular_range=(0.1, 0.7)),),  # the paper's: random per seed
+    shared_streams=True,
+))

@@ -1,0 +1,59 @@
+"""Surface materials, declared once each (bpy-free): what a material looks like, by name.
+
+A :class:`Material` names its physical description; :mod:`generator.blender.materials`
+turns it into a Blender node material with seeded variation (colour jitter, roughness
+jitter, pattern scale), so two sites share no exact colour. Materials used by several asset
+kinds are declared here (:data:`SHARED`); a material only one kind uses is declared in that
+kind's catalogue entry (:class:`generator.scene.kinds.AssetKind` ``materials``), next to
+its builder. Meshes name their materials (``MeshBuilder.box(..., material="brick")``); a
+name nobody declares renders as ``default``. Giving every material a new property (a
+texture, a LiDAR reflectivity) is one new field of :class:`Material`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """A procedural noise pattern mixed into the base colour (dirt, rust, grain, stains):
+    noise of ``scale`` (features per metre, roughly), blending towards ``colour`` (linear
+    RGB) with weight up to ``strength``."""
+
+    scale: float
+    colour: tuple[float, float, float]
+    strength: float
+
+
+@dataclass(frozen=True)
+class Material:
+    """A named surface: base ``colour`` (linear RGB, 0-1), ``roughness`` and ``metallic``
+    (Principled BSDF, 0-1), an optional :class:`Pattern`, and, where the site draws them per
+    seed instead (the paper's ground), ``roughness_range`` and ``specular_range``."""
+
+    name: str
+    colour: tuple[float, float, float]
+    roughness: float
+    metallic: float = 0.0
+    pattern: Pattern | None = None
+    roughness_range: tuple[float, float] | None = None
+    specular_range: tuple[float, float] | None = None
+
+
+DEFAULT = "default"  # the material of faces whose material nobody declares
+
+SHARED: tuple[Material, ...] = (
+    Material(DEFAULT, (0.5, 0.5, 0.5), 0.6),
+    Material("concrete", (0.45, 0.44, 0.41), 0.85, 0.0, Pattern(3.0, (0.33, 0.32, 0.3), 0.5)),
+    Material("brick", (0.42, 0.12, 0.06), 0.85, 0.0, Pattern(10.0, (0.3, 0.08, 0.05), 0.5)),
+    Material("rebar", (0.25, 0.12, 0.06), 0.7, 0.6, Pattern(20.0, (0.4, 0.18, 0.07), 0.6)),
+    Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3)),
+    Material("steel_painted", (0.2, 0.2, 0.21), 0.5, 0.3),
+    Material("steel_dark", (0.05, 0.05, 0.05), 0.6, 0.4, Pattern(5.0, (0.12, 0.1, 0.08), 0.4)),
+    Material("wood", (0.45, 0.3, 0.15), 0.75, 0.0, Pattern(18.0, (0.32, 0.2, 0.1), 0.5)),
+    Material("wood_dark", (0.25, 0.16, 0.08), 0.8, 0.0, Pattern(18.0, (0.15, 0.1, 0.05), 0.5)),
+    Material("glass", (0.02, 0.03, 0.04), 0.05),
+    Material("rubber", (0.02, 0.02, 0.02), 0.9),
+    Material("plastic_white", (0.8, 0.8, 0.8), 0.4),
+)
