@@ -85,7 +85,7 @@ def test_a_shared_vertex_is_watertight():
     """Rays exactly through the vertex that the 64 triangles of a tilted fan share, from
     random directions on both sides, are all blocked: the structure is built robust (with
     Embree's default, non-robust build a share of them passes between the triangles: measured
-    in docs/benchmarks.md, visibility, tenth session)."""
+    in docs/benchmarks.md, "What was tried and rejected")."""
     k = 64
     angles = np.linspace(0, 2 * np.pi, k, endpoint=False)
     rim = np.stack([3 * np.cos(angles), 3 * np.sin(angles), np.zeros(k)], axis=1)

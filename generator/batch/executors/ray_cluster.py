@@ -36,7 +36,7 @@ from .. import folders
 from . import Executor, ExecutorError, Outcome, SeedJob, produce_seed, register_executor
 from .seed import CANCEL_WAIT
 
-DEFAULT_CPUS_PER_SEED = 2.0  # one seed per 2 CPUs (the machine measured in docs/benchmarks.md: ~2.4 GB a seed)
+DEFAULT_CPUS_PER_SEED = 2.0  # one seed per 2 CPUs (the main job in docs/benchmarks.md: 2.63 GB peak a seed)
 MIN_CPUS_PER_SEED = 0.0001  # the finest fraction of a resource Ray accepts (smaller ones raise)
 DEFAULT_RETRIES = 2  # a seed whose worker or node dies is run at most 3 times in all
 
