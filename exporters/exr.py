@@ -46,25 +46,33 @@ def use_all_cores() -> None:
     (its global thread pool; the library's default is none). The bytes written do not depend
     on the thread count (tested). A count set by the caller (non-zero) is kept. Called by the
     first write or read of a frame, not at import: a process that only imports this module
-    (the batch driver, which imports every exporter to find the exports) starts no pool, so
-    the children it forks (Ray's, started with a preexec_fn) inherit none."""
-    global _FORK_HOOK
+    starts no pool."""
     if OpenEXR.global_thread_count() == 0:
         OpenEXR.set_global_thread_count(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                         else os.cpu_count() or 1)
-    if not _FORK_HOOK and hasattr(os, "register_at_fork"):
-        os.register_at_fork(after_in_child=_threads_after_fork)
-        _FORK_HOOK = True
 
 
-def _threads_after_fork() -> None:
-    """A forked child (a DataLoader worker) holds the parent's thread pool without its threads,
-    and any EXR read would wait on them forever: start the child with a pool of its own."""
-    OpenEXR.set_global_thread_count(0)
-    use_all_cores()
+_POOL_BEFORE_FORK = [0]  # the pool's thread count when this process last forked
 
 
-_FORK_HOOK = False  # whether _threads_after_fork is registered (once, with the first pool)
+def _stop_pool_before_fork() -> None:
+    """A forked child (a DataLoader worker, a subprocess started with a preexec_fn) would hold
+    the pool without its threads: any EXR read there would wait on them forever, and stopping
+    that pool in the child joins threads that do not exist there (a crash). So the parent stops
+    its pool (joining its own threads) before it forks; the child starts with none and makes
+    its own on its first read; the parent gets its pool back after the fork."""
+    _POOL_BEFORE_FORK[0] = OpenEXR.global_thread_count()
+    if _POOL_BEFORE_FORK[0]:
+        OpenEXR.set_global_thread_count(0)
+
+
+def _restore_pool_after_fork() -> None:
+    if _POOL_BEFORE_FORK[0]:
+        OpenEXR.set_global_thread_count(_POOL_BEFORE_FORK[0])
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(before=_stop_pool_before_fork, after_in_parent=_restore_pool_after_fork)
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",

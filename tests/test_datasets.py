@@ -196,6 +196,27 @@ print("same" if got == expected else f"differ {{got}} {{expected}}")
     assert r.returncode == 0 and r.stdout.strip() == "same", r.stdout + r.stderr[-2000:]
 
 
+def test_a_process_with_an_exr_pool_forks_subprocesses_with_a_preexec_fn(seed_folder):
+    """A process that has read EXR frames (its pool running) starts 30 subprocesses with a
+    preexec_fn (Python runs its fork hooks in the child then): none crashes or hangs, and
+    the parent still reads the same frames after, with its pool of 8 threads back. (A pool stopped in the child, as before,
+    joined threads that do not exist there: a segmentation fault in CI.)"""
+    code = f"""
+import subprocess, sys
+import numpy as np, OpenEXR
+from datasets import FrameDataset
+ds = FrameDataset({str(seed_folder)!r}, keys=("depth",))
+OpenEXR.set_global_thread_count(8)  # more threads than this machine's cores: the crash was certain
+before = [float(np.nansum(np.where(np.isinf(ds[i]["depth"]), 0, ds[i]["depth"]))) for i in range(len(ds))]
+codes = [subprocess.run([sys.executable, "-c", "pass"], preexec_fn=lambda: None, timeout=60).returncode
+         for _ in range(30)]
+after = [float(np.nansum(np.where(np.isinf(ds[i]["depth"]), 0, ds[i]["depth"]))) for i in range(len(ds))]
+print(codes.count(0), before == after, OpenEXR.global_thread_count())
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and r.stdout.split() == ["30", "True", "8"], r.stdout + r.stderr[-2000:]
+
+
 def test_concurrent_reads_from_several_processes(seed_folder):
     ds = FrameDataset(seed_folder)
     expected = [float(ds[i]["depth"][np.isfinite(ds[i]["depth"])].sum()) for i in range(len(ds))]
