@@ -4,12 +4,13 @@ with a travelling trolley; over a timeline's stages they turn to a new heading."
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ...geometry.portable_math import sincos, vector_norm
 from ...geometry.seeding import stream
-from ..assets import Asset, Keyframes, Part
+from ..assets import Asset, Footprint, Keyframes, Part
 from ..kinds import AssetKind, register
 from ..materials import Material, Pattern
 from ..meshes import MeshBuilder
@@ -17,6 +18,7 @@ from ..planning import Custom
 from ..timeline import Rebuilt
 
 P_SLEW = 0.8  # chance a crane turns to a new heading at a stage
+FOOTPRINT = (6.0, 6.0)  # metres: the concrete foundation, what a crane takes on the ground
 
 # A tower crane's trolley runs along the jib at up to 1-1.7 m/s; ours at 1 m/s, stopping
 # 2 s at each stop (hooking or setting down a load), whatever the animation's length.
@@ -69,12 +71,10 @@ def crane_mast(side: float, section: float, mast_top: float) -> MeshBuilder:
     return mast
 
 
-def crane_slewing_part(rng: np.random.Generator, side: float, jib_length: float) -> tuple[MeshBuilder, float, float]:
-    """Slewing ring, cab, lattice jib and counter-jib with walkway, railings and concrete
-    counterweights: (mesh, jib height, counter-jib length)."""
+def crane_slewing_part(side: float, jib_length: float, jib_h: float, counter: float, n_weights: int) -> MeshBuilder:
+    """Slewing ring, cab, lattice jib (``jib_h`` high) and counter-jib (``counter`` long) with
+    walkway, railings and ``n_weights`` pairs of concrete counterweights."""
     a = side / 2
-    jib_h = rng.uniform(1.4, 2.0)
-    counter = rng.uniform(12.0, 18.0)
     slew = MeshBuilder()
     slew.cylinder(side * 0.8, (0, 0, 0), (0, 0, 1.0), segments=20, material="crane_paint")
     slew.box((2.0, 1.6, 2.2), (0.3, -(a + 0.9), 1.1 + 0.2), material="crane_paint")  # cab
@@ -88,13 +88,12 @@ def crane_slewing_part(rng: np.random.Generator, side: float, jib_length: float)
         for p, q in ((bl, tp), (br, tp), (bl, br)):
             lattice_member(slew, (x, p[1], p[2]), (x2, q[1], q[2]), 0.04, "crane_paint")
     slew.box((counter, 1.9, 0.12), (-counter / 2, 0, 0.96), material="steel_painted")  # walkway
-    n_weights = int(rng.integers(3, 6))
     for k in range(n_weights):  # concrete slabs (0.95 x 1.8 x 0.5), two high, on the bottom chords:
         for lev in range(2):  # between the railings (|y| < 0.925) and under the top chord
             slew.box((0.95, 1.8, 0.49), (-counter + 0.6 + k * 1.0, 0, 1.07 + 0.25 + lev * 0.5), material="concrete")
     slew.box((counter, 0.05, 1.0), (-counter / 2, 0.95, 1.5), material="steel_painted")  # railing panels
     slew.box((counter, 0.05, 1.0), (-counter / 2, -0.95, 1.5), material="steel_painted")
-    return slew, jib_h, counter
+    return slew
 
 
 def crane_trolley_and_hook(mast_top: float, hook_height: float) -> tuple[MeshBuilder, MeshBuilder]:
@@ -110,23 +109,49 @@ def crane_trolley_and_hook(mast_top: float, hook_height: float) -> tuple[MeshBui
     return trolley, hook
 
 
+@dataclass(frozen=True)
+class CraneDraws:
+    """Everything a tower crane draws from its stream, in the order it draws it (metres,
+    radians, radians a second)."""
+
+    side: float
+    section: float
+    jib_h: float
+    counter: float
+    n_weights: int
+    omega: float
+    yaw0: float
+    stops: np.ndarray
+
+    @staticmethod
+    def draw(rng: np.random.Generator, jib_length: float) -> CraneDraws:
+        side, section = rng.uniform(1.6, 2.2), rng.uniform(3.0, 5.0)
+        jib_h, counter, n_weights = rng.uniform(1.4, 2.0), rng.uniform(12.0, 18.0), int(rng.integers(3, 6))
+        omega = rng.uniform(0.3, 0.9) * 2 * np.pi / 60 * rng.choice([-1, 1])  # rad/s, under 1 turn/min
+        yaw0 = rng.uniform(0, 2 * np.pi)
+        return CraneDraws(side, section, jib_h, counter, n_weights, omega, yaw0, rng.uniform(6.0, jib_length - 2.0, 4))
+
+
 def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float, frames: int, fps: float,
                 slew_offset: float = 0.0) -> Asset:
     """A flat-top tower crane: lattice mast on a concrete foundation, slewing jib and
     counter-jib with concrete counterweights, cab, a trolley moving along the jib and a hook
     block hanging at ``hook_height`` metres. It slews at 0.3-0.9 turns per minute, starting
     ``slew_offset`` radians from its drawn heading (a later stage of a timeline)."""
-    side = rng.uniform(1.6, 2.2)
-    section = rng.uniform(3.0, 5.0)
+    return crane_from(CraneDraws.draw(rng, jib_length), hook_height, jib_length, frames, fps, slew_offset)
+
+
+def crane_from(d: CraneDraws, hook_height: float, jib_length: float, frames: int, fps: float,
+               slew_offset: float = 0.0) -> Asset:
+    """The crane of :func:`tower_crane` built from its draws ``d``."""
     mast_top = hook_height + 6.0
-    mast = crane_mast(side, section, mast_top)
-    slew, jib_h, counter = crane_slewing_part(rng, side, jib_length)
+    mast = crane_mast(d.side, d.section, mast_top)
+    slew = crane_slewing_part(d.side, jib_length, d.jib_h, d.counter, d.n_weights)
     trolley, hook = crane_trolley_and_hook(mast_top, hook_height)
     # animation: slewing (linear), trolley travel (piecewise linear, seeded)
-    omega = rng.uniform(0.3, 0.9) * 2 * np.pi / 60 * rng.choice([-1, 1])  # rad/s, under 1 turn/min
-    yaw0 = rng.uniform(0, 2 * np.pi) + slew_offset
-    slew_keys = Keyframes(np.array([1, frames]), rotation=np.array([[0, 0, yaw0], [0, 0, yaw0 + omega * (frames - 1) / fps]]))
-    key_frames, xs_trolley = trolley_travel(rng.uniform(6.0, jib_length - 2.0, 4), frames, fps)
+    yaw0 = d.yaw0 + slew_offset
+    slew_keys = Keyframes(np.array([1, frames]), rotation=np.array([[0, 0, yaw0], [0, 0, yaw0 + d.omega * (frames - 1) / fps]]))
+    key_frames, xs_trolley = trolley_travel(d.stops, frames, fps)
     n_keys = len(key_frames)
     trolley_keys = Keyframes(key_frames, location=np.stack([xs_trolley, np.zeros(n_keys), np.full(n_keys, 1.0 - 0.07)], 1))
     parts = [
@@ -136,10 +161,10 @@ def tower_crane(rng: np.random.Generator, hook_height: float, jib_length: float,
         Part("Crane", trolley.build(), location=(xs_trolley[0], 0, 1.0 - 0.07), parent=2, keys=trolley_keys),
         Part("Crane", hook.build(), parent=3),
     ]
-    return Asset("Crane", parts, (6.0, 6.0), moves=False, footprint_from_geometry=False,
-                 info={"hook_height": hook_height, "jib_length": jib_length, "counter_jib": counter, "mast_top": mast_top,
-                       "top": mast_top + 1.0 + jib_h + 0.07,
-                       "slew_rad_per_s": omega})
+    return Asset("Crane", parts, FOOTPRINT, moves=False, footprint_from_geometry=False,
+                 info={"hook_height": hook_height, "jib_length": jib_length, "counter_jib": d.counter, "mast_top": mast_top,
+                       "top": mast_top + 1.0 + d.jib_h + 0.07,
+                       "slew_rad_per_s": d.omega})
 
 
 def slew_offset(seed: int, crane: int, stage: int) -> float:
@@ -188,17 +213,15 @@ def plan_cranes(site, kind: AssetKind) -> None:
             if spot is None:
                 continue
             pos, jib, hook = spot
-            state_before = crng.bit_generator.state
-            asset = tower_crane(crng, hook, jib, params.frames, params.fps)
-            if plan.stages > 1:  # the same draws, the stage's heading
-                rebuild = np.random.Generator(np.random.PCG64())
-                rebuild.bit_generator.state = state_before
-                asset = tower_crane(rebuild, hook, jib, params.frames, params.fps, slew_offset(site.seed, k, plan.stage))
-            placed = site.placer.try_place(asset, [((pos[0], pos[1]), float(crng.uniform(0, math.pi / 2)))])
-            if placed is not None:
-                plan.placed.append(placed)
-                cranes.append((pos, jib + 1.0, asset.info["top"]))
-                break
+            draws = CraneDraws.draw(crng, jib)
+            yaw = float(crng.uniform(0, math.pi / 2))
+            if not site.placer.fits(Footprint((float(pos[0]), float(pos[1])), FOOTPRINT, yaw)):
+                continue  # its meshes are built only where it fits (they take most of a plan's time)
+            asset = crane_from(draws, hook, jib, params.frames, params.fps,
+                               slew_offset(site.seed, k, plan.stage) if plan.stages > 1 else 0.0)
+            plan.placed.append(site.placer.try_place(asset, [((pos[0], pos[1]), yaw)]))
+            cranes.append((pos, jib + 1.0, asset.info["top"]))
+            break
         else:
             site.skip(kind.name)
 
