@@ -20,7 +20,7 @@ W, H = scenes.TILTED_PLANE_SIZE
 @pytest.fixture(scope="module", params=["geometry", "renderer"])
 def rendered(plane_blend, request):
     """A render with each ground-truth source: the ray cast (default) and Cycles' passes."""
-    sim = Simulator(plane_blend, points_density=400, segmentation_sensitivity=0.0, render_preset="preview",
+    sim = Simulator(plane_blend, points_density=50, segmentation_sensitivity=0.0, render_preset="preview",
                     ground_truth=request.param)
     return sim, sim.render()
 
