@@ -4,7 +4,6 @@ element counts against the file's length), and what a file declares is checked b
 work it implies (array shapes, vertex counts, text size). Real seeds, real processes."""
 
 import json
-import resource
 import shutil
 import subprocess
 import sys

@@ -3,7 +3,6 @@
 Most cases need no rendering: the seed already lies in the folder (a copy of the shared
 tiny seed 4) or something else is in the way. Two tests render one tiny seed each."""
 
-import json
 import os
 import shutil
 import subprocess

@@ -61,7 +61,7 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
 
     from .. import Simulator
     from ..geometry.seeding import stream
-    from ..scene import build_site, plan_site, site_params
+    from ..scene import build_site
     from ..scene.site_map import draw_map
     from .start_pose import site_start
 
@@ -84,10 +84,9 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
         for old in site_dir.glob("*_run*.npz"):  # an earlier run's walks (another --runs, preset...), ours only
             if re.fullmatch(rf"({'|'.join(METHODS)})_run\d+\.npz", old.name):
                 old.unlink()
-        plan = plan_site(seed, site_params(scene_preset))
         site = build_site(seed, scene_preset, site_dir, preview=False)
         sim = Simulator(site.blend, points_density=points_density, seed=seed, max_pcl_depth=max_depth)
-        start, (lo, hi) = site_start(plan)
+        start, (lo, hi) = site_start(site.plan)
         if not sim.is_free(start[:3, 3]):
             raise RuntimeError(f"seed {seed}: the entrance start pose {start[:3, 3]} is not free of geometry")
         subsets = {"all": np.ones(sim.num_points, dtype=bool), "observable": sim.observable_points_mask}
@@ -109,7 +108,7 @@ def run_exploration(seeds: list[int], steps: int, runs: int, out: Path, scene_pr
         coverage_plot(out / f"coverage_seed_{seed}.png",
                       {f"{m} (mean of {runs})": np.mean(curves[m]["all"], axis=0) for m in METHODS},
                       f"seed {seed}: coverage within {max_depth:g} m, {steps} steps")
-        draw_map(plan, out / f"figure8_seed_{seed}.png", trajectory=trajectories[("modified_random_walk", 0)].positions)
+        draw_map(site.plan, out / f"figure8_seed_{seed}.png", trajectory=trajectories[("modified_random_walk", 0)].positions)
         entry = {}
         for m in METHODS:
             entry[m] = _summary([coverage_auc(c) for c in curves[m]["all"]]) | {

@@ -42,7 +42,7 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     from .. import Simulator
     from ..geometry.seeding import stream
     from ..geometry.voxels import VoxelMap
-    from ..scene import build_site, plan_site, site_params
+    from ..scene import build_site
     from .paper_voxels import FirstSeenVoxels
     from .start_pose import site_start
 
@@ -51,7 +51,7 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     site = build_site(seed, scene_preset, out / "site", preview=False)
     sim = Simulator(site.blend, points_density=0.5, seed=seed, ground_truth="renderer")  # as the paper (docstring)
     sim.configure_render(samples=1, denoise=False, resolution=tuple(resolution))
-    start, (lo, hi) = site_start(plan_site(seed, site_params(scene_preset)))
+    start, (lo, hi) = site_start(site.plan)
     checker = BoundedChecker(sim, lo, hi)
     traj = random_walk(checker, start, steps, stream(seed, "baseline-reconstruction"), step=step, angle=angle)
     traj.save(out / "trajectory.npz")

@@ -52,22 +52,22 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
     from .. import Simulator
     from ..blender import session
     from ..geometry.raycast import SceneGeometry
-    from ..scene import build_site, plan_site, site_params
+    from ..scene import build_site
     from .config import check_point_budget, run_timing
     from .fly import fly_scene
 
     t0 = time.perf_counter()
     K, anim = cfg.phases, max(250, cfg.frames)
-    params = site_params(cfg.scene_preset, frames=anim)
 
     def simulator(blend, instance_names=None):
         return Simulator(blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
                          render_preset=cfg.render_preset, instance_names=instance_names)
 
-    blends, geometries, names = [], [], set()
+    blends, plans, geometries, names = [], [], [], set()
     for k in range(K):  # build every stage; keep its geometry for planning the trajectories
         site = build_site(seed, cfg.scene_preset, phase_folder(folder, k) / "scene", frames=anim, stage=k, stages=K)
         blends.append(site.blend)
+        plans.append(site.plan)
         sim = simulator(site.blend)
         check_point_budget(cfg, sim.num_points)
         geometries.append(SceneGeometry(sim.scene_parts()))
@@ -91,8 +91,7 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
         out = phase_folder(folder, k)
         sim = simulator(blends[k], table)  # one object table: an object's instance id is the same in every stage
         sim.configure_render(resolution=cfg.resolution, device=cfg.device)
-        plan = plan_site(seed, params, k, K)
-        per_kind, visible = fly_scene(sim, trajectories.items(), out, seed, plan, cfg, lambda: emit(event="frame"))
+        per_kind, visible = fly_scene(sim, trajectories.items(), out, seed, plans[k], cfg, lambda: emit(event="frame"))
         tracks += visible
         stage = {"points": sim.num_points, "trajectories": per_kind}
         summary["stages"].append(stage)

@@ -32,7 +32,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     from exporters.manifest import write_manifest
 
     from .. import Simulator
-    from ..scene import build_site, plan_site, site_params
+    from ..scene import build_site
     from .config import RunConfig, check_point_budget, plan_trajectories, run_timing
 
     cfg = RunConfig.from_dict(config).validated()
@@ -50,7 +50,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     # every trajectory planned before the first frame is rendered: one that cannot be planned
     # (too many frames for the site: docs/trajectories.md) fails the seed in seconds
     planned = plan_trajectories(sim, cfg.trajectories, start, seed, cfg.frames, fps=10.0)
-    plan = plan_site(seed, site_params(cfg.scene_preset, frames=max(250, cfg.frames)))
+    plan = site.plan
     emit(event="start", frames=cfg.frames * len(cfg.trajectories), points=sim.num_points)
     summary = {"trajectories": {}, "render_device": sim.render_device}
     summary["trajectories"], tracks = fly_scene(sim, planned, folder, seed, plan, cfg, lambda: emit(event="frame"))

@@ -10,7 +10,7 @@ import numpy as np
 from bpy_extras import anim_utils
 
 from ..geometry.portable_math import atan2, hypot, sincos
-from ..scene.assets import Asset, Part
+from ..scene.assets import Asset
 from ..scene.meshes import MeshData
 from ..scene.site import SitePlan, fence_part, ground_part
 from ..scene.timeline import object_name

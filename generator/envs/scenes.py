@@ -154,11 +154,9 @@ def load_site_scene(folder: Path) -> SceneSpec:
 
 def _build(seed: int, preset: str, out: Path, key: str) -> None:
     from ..baselines.start_pose import site_start
-    from ..scene import build_site, plan_site, site_params
+    from ..scene import build_site
 
-    plan = plan_site(seed, site_params(preset))
-    start, (lo, hi) = site_start(plan)
-    build_site(seed, preset, out, preview=False)
+    start, (lo, hi) = site_start(build_site(seed, preset, out, preview=False).plan)
     meta = {"format": SCENE_FORMAT, "code_key": key, "seed": seed, "preset": preset, "start": start.tolist(),
             "bounds": [lo.tolist(), hi.tolist()],
             "start_rule": "level camera at the site's entrance, lowest spawn height, looking in (baselines)",

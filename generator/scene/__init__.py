@@ -19,10 +19,14 @@ from .taxonomy import CLASS_ID, CLASSES  # noqa: F401
 
 @dataclass
 class SiteResult:
+    """What :func:`build_site` made: the saved files, ``site.json``'s contents and the plan
+    the site was built from (so no caller plans it a second time)."""
+
     blend: Path
     preview: Path | None
     map: Path
     info: dict
+    plan: SitePlan
 
 
 def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", preview: bool = True,
@@ -58,7 +62,7 @@ def build_site(seed: int, preset: str = "medium", out_dir: str | Path = ".", pre
         preview_path = out / "preview.png"
         Image.fromarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)).save(preview_path)
         session.open_blend(blend)  # leave Blender with the saved file, untouched by the preview
-    return SiteResult(blend, preview_path, map_path, info)
+    return SiteResult(blend, preview_path, map_path, info, plan)
 
 
 __all__ = ["build_site", "site_params", "plan_site", "SiteParams", "SitePlan", "PRESETS", "LAYOUTS", "CLASSES", "CLASS_ID", "SiteResult"]

@@ -76,9 +76,10 @@ def local_bounds(asset: Asset) -> tuple[np.ndarray, np.ndarray]:
     return np.minimum(lo, -half), np.maximum(hi, half)
 
 
-def footprint_at(asset: Asset, position, yaw: float) -> Footprint:
-    """The ground ``asset`` covers with its origin at ``position`` turned by ``yaw``."""
-    lo, hi = local_bounds(asset)
+def footprint_at(asset: Asset, position, yaw: float, bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Footprint:
+    """The ground ``asset`` covers with its origin at ``position`` turned by ``yaw``
+    (``bounds``: its :func:`local_bounds`, when the caller has them already)."""
+    lo, hi = local_bounds(asset) if bounds is None else bounds
     c_local = (lo + hi) / 2
     s, c = sincos(yaw)
     center = np.asarray(position) + np.array([c * c_local[0] - s * c_local[1], s * c_local[0] + c * c_local[1]])
@@ -104,8 +105,9 @@ class Placer:
     def try_place(self, asset: Asset, candidates) -> PlacedAsset | None:
         """The asset at the first candidate ((x, y), yaw) where it fits (its footprint is
         then taken), or None."""
+        bounds = local_bounds(asset)  # once: the asset is the same at every candidate
         for (x, y), yaw in candidates:
-            fp = footprint_at(asset, (x, y), yaw)
+            fp = footprint_at(asset, (x, y), yaw, bounds)
             if self.fits(fp):
                 self.taken.append(fp)
                 return PlacedAsset(asset, (float(x), float(y)), float(yaw), fp)
