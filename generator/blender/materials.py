@@ -46,29 +46,81 @@ def make_material(key: str, seed: int):
         bsdf.inputs["Roughness"].default_value = float(rng.uniform(*recipe.roughness_range))
     if recipe.specular_range is not None:
         bsdf.inputs["Specular IOR Level"].default_value = float(rng.uniform(*recipe.specular_range))
-    if recipe.pattern is None:
+    layers = recipe.patterns()
+    if not layers:
         bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
     else:
-        _add_pattern(mat, bsdf, recipe, colour, rng)
+        _add_layers(mat, bsdf, layers, colour, rng)
     mat.diffuse_color = (*colour, 1.0)  # viewport / Workbench colour
     return mat
 
 
-def _add_pattern(mat, bsdf, recipe: Material, colour, rng: np.random.Generator) -> None:
-    """The recipe's pattern: a noise texture mixing the base ``colour`` towards the
-    pattern's (jittered) colour, into the BSDF's base colour."""
+BUMP_DISTANCE = 0.01  # metres of relief per unit of a layer's ``bump`` (Pattern.bump is in centimetres)
+
+
+def _add_layers(mat, bsdf, layers, colour, rng: np.random.Generator) -> None:
+    """Each layer's texture (object coordinates: features per metre) mixes the colour so far
+    towards the layer's (jittered) colour; layers with ``bump`` add up into the height of a
+    Bump node on the BSDF's normal."""
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    tex = nodes.new("ShaderNodeTexNoise")
-    tex.inputs["Scale"].default_value = recipe.pattern.scale * float(rng.uniform(0.8, 1.25))
-    tex.inputs["Detail"].default_value = 6.0
-    mix = nodes.new("ShaderNodeMix")
-    mix.data_type = "RGBA"
-    mix.inputs["Factor"].default_value = recipe.pattern.strength
+    coords = nodes.new("ShaderNodeTexCoord")
+    current = None  # the colour so far: an output socket, or None for the base colour
+    height = None
+    for layer in layers:
+        fac = _layer_factor(nodes, links, coords.outputs["Object"], layer, rng)
+        mix = nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        weight = nodes.new("ShaderNodeMath")
+        weight.operation = "MULTIPLY"
+        links.new(fac, weight.inputs[0])
+        weight.inputs[1].default_value = layer.strength
+        links.new(weight.outputs[0], mix.inputs["Factor"])
+        if current is None:
+            mix.inputs["A"].default_value = (*colour, 1.0)
+        else:
+            links.new(current, mix.inputs["A"])
+        mix.inputs["B"].default_value = (*_jitter(layer.colour, rng), 1.0)
+        current = mix.outputs["Result"]
+        if layer.bump:
+            scaled = nodes.new("ShaderNodeMath")
+            scaled.operation = "MULTIPLY"
+            links.new(fac, scaled.inputs[0])
+            scaled.inputs[1].default_value = layer.bump
+            if height is None:
+                height = scaled.outputs[0]
+            else:
+                total = nodes.new("ShaderNodeMath")
+                total.operation = "ADD"
+                links.new(height, total.inputs[0])
+                links.new(scaled.outputs[0], total.inputs[1])
+                height = total.outputs[0]
+    links.new(current, bsdf.inputs["Base Color"])
+    if height is not None:
+        bump = nodes.new("ShaderNodeBump")
+        bump.inputs["Distance"].default_value = BUMP_DISTANCE
+        links.new(height, bump.inputs["Height"])
+        links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+
+
+def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator):
+    """The layer's texture at ``vector`` as a factor in [0, 1] (an output socket)."""
+    scale = layer.scale * float(rng.uniform(0.8, 1.25))
     ramp = nodes.new("ShaderNodeMapRange")
-    ramp.inputs["From Min"].default_value = 0.35
-    ramp.inputs["From Max"].default_value = 0.65
+    if layer.kind == "voronoi":  # a stone at each cell: 1 at its centre, 0 at its edge, times its own shade
+        tex = nodes.new("ShaderNodeTexVoronoi")
+        tex.inputs["Scale"].default_value = scale
+        links.new(vector, tex.inputs["Vector"])
+        ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.45, 0.1
+        links.new(tex.outputs["Distance"], ramp.inputs["Value"])
+        shade = nodes.new("ShaderNodeMath")
+        shade.operation = "MULTIPLY"
+        links.new(ramp.outputs["Result"], shade.inputs[0])
+        links.new(tex.outputs["Color"], shade.inputs[1])
+        return shade.outputs[0]
+    tex = nodes.new("ShaderNodeTexNoise")
+    tex.inputs["Scale"].default_value = scale
+    tex.inputs["Detail"].default_value = layer.detail
+    links.new(vector, tex.inputs["Vector"])
+    ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.35, 0.65
     links.new(tex.outputs["Fac"], ramp.inputs["Value"])
-    links.new(ramp.outputs["Result"], mix.inputs["Factor"])
-    mix.inputs["A"].default_value = (*colour, 1.0)
-    mix.inputs["B"].default_value = (*_jitter(recipe.pattern.colour, rng), 1.0)
-    links.new(mix.outputs["Result"], bsdf.inputs["Base Color"])
+    return ramp.outputs["Result"]

@@ -17,20 +17,34 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Pattern:
-    """A procedural noise pattern mixed into the base colour (dirt, rust, grain, stains):
-    noise of ``scale`` (features per metre, roughly), blending towards ``colour`` (linear
-    RGB) with weight up to ``strength``."""
+    """A procedural texture layer mixed into the base colour (dirt, rust, grain, stains,
+    gravel): a ``kind`` of texture (``noise``: fractal noise of ``detail`` octaves;
+    ``voronoi``: cells, e.g. stones, each of its own brightness) of ``scale`` features per
+    metre (in the object's own coordinates), blending towards ``colour`` (linear RGB) with
+    weight up to ``strength``, and raising the surface by up to ``bump`` centimetres (a
+    shading normal only: the geometry, and so every ground-truth output, is unchanged)."""
 
     scale: float
     colour: tuple[float, float, float]
     strength: float
+    kind: str = "noise"
+    detail: float = 6.0
+    bump: float = 0.0
+
+    def __post_init__(self):
+        if self.kind not in PATTERN_KINDS:
+            raise ValueError(f"Pattern kind {self.kind!r} is unknown; choose one of {', '.join(PATTERN_KINDS)}")
+
+
+PATTERN_KINDS = ("noise", "voronoi")
 
 
 @dataclass(frozen=True)
 class Material:
     """A named surface: base ``colour`` (linear RGB, 0-1), ``roughness`` and ``metallic``
-    (Principled BSDF, 0-1), an optional :class:`Pattern`, and, where the site draws them per
-    seed instead (the paper's ground), ``roughness_range`` and ``specular_range``."""
+    (Principled BSDF, 0-1), an optional :class:`Pattern` and further ``layers`` applied over
+    it in order (coarse to fine), and, where the site draws them per seed instead (the
+    paper's ground), ``roughness_range`` and ``specular_range``."""
 
     name: str
     colour: tuple[float, float, float]
@@ -39,13 +53,24 @@ class Material:
     pattern: Pattern | None = None
     roughness_range: tuple[float, float] | None = None
     specular_range: tuple[float, float] | None = None
+    layers: tuple[Pattern, ...] = ()
 
+    def patterns(self) -> tuple[Pattern, ...]:
+        """Every texture layer, the first ``pattern`` first."""
+        return ((self.pattern,) if self.pattern is not None else ()) + self.layers
+
+
+# cast concrete, over its base pattern: stains and colour variation of half a metre to a few
+# metres, a mottle of centimetres (pores, aggregate), a fine grain with a little relief
+CONCRETE_LAYERS = (Pattern(0.6, (0.26, 0.25, 0.22), 0.6, detail=8.0),
+                   Pattern(12.0, (0.62, 0.61, 0.57), 0.45, kind="voronoi"),
+                   Pattern(40.0, (0.2, 0.2, 0.19), 0.35, detail=3.0, bump=0.15))
 
 DEFAULT = "default"  # the material of faces whose material nobody declares
 
 SHARED: tuple[Material, ...] = (
     Material(DEFAULT, (0.5, 0.5, 0.5), 0.6),
-    Material("concrete", (0.45, 0.44, 0.41), 0.85, 0.0, Pattern(3.0, (0.33, 0.32, 0.3), 0.5)),
+    Material("concrete", (0.45, 0.44, 0.41), 0.85, 0.0, Pattern(3.0, (0.33, 0.32, 0.3), 0.5), layers=CONCRETE_LAYERS),
     Material("brick", (0.42, 0.12, 0.06), 0.85, 0.0, Pattern(10.0, (0.3, 0.08, 0.05), 0.5)),
     Material("rebar", (0.25, 0.12, 0.06), 0.7, 0.6, Pattern(20.0, (0.4, 0.18, 0.07), 0.6)),
     Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3)),

@@ -14,7 +14,7 @@ from ...geometry.seeding import stream
 from ..assets import Asset, Part
 from ..building_parts import free_spans, infill_bay, scaffold_run
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import CONCRETE_LAYERS, Material, Pattern
 from ..meshes import MeshBuilder
 from ..planning import Custom
 from ..timeline import Rebuilt
@@ -338,7 +338,8 @@ register(AssetKind(
     name="Building", classes=("Building", "Rebar", "Formwork", "Scaffolding"), build=building,
     place=Custom(plan_buildings), order=10, count_param="buildings",
     counts={"small": (1, 1), "medium": (2, 2), "large": (3, 4)},
-    materials=(Material("concrete_dark", (0.32, 0.31, 0.3), 0.85, 0.0, Pattern(3.0, (0.24, 0.23, 0.22), 0.5)),
+    materials=(Material("concrete_dark", (0.32, 0.31, 0.3), 0.85, 0.0, Pattern(3.0, (0.24, 0.23, 0.22), 0.5),
+                        layers=CONCRETE_LAYERS),
                Material("formwork", (0.75, 0.45, 0.05), 0.6, 0.0, Pattern(5.0, (0.55, 0.4, 0.2), 0.4))),
     stage=Rebuilt("1-2 floors of frame a stage until the planned height, brick infill two floors behind, then the "
                   "remaining facades one floor a stage; the top slab's rebar and formwork climb with it"),

@@ -1,0 +1,75 @@
+"""Surface materials (issue #38): every declared material's texture layers are valid, and a
+textured material changes what the camera sees, never what the labels, depth and normals say."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from generator import Simulator
+from generator.scene.kinds import all_materials
+from generator.scene.materials import PATTERN_KINDS, Pattern
+
+PATCH = 8
+
+
+def test_every_material_declares_valid_layers():
+    materials = all_materials()
+    assert len(materials["ground"].patterns()) >= 4  # texture from tens of metres to centimetres
+    scales = sorted(p.scale for p in materials["ground"].patterns())
+    assert scales[0] <= 0.1 and scales[-1] >= 50  # features per metre
+    for name, m in materials.items():
+        for p in m.patterns():
+            assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1 and p.bump >= 0, name
+            assert all(0 <= c <= 1 for c in p.colour), name
+    with pytest.raises(ValueError, match="Pattern kind 'wave' is unknown; choose one of noise, voronoi"):
+        Pattern(1.0, (0.5, 0.5, 0.5), 0.5, kind="wave")
+
+
+def ground_view(path, material: str | None):
+    """A 200 m plane seen from 2 m up, looking 30 degrees down, its material ``material``
+    (a site material of seed 5) or none."""
+    from generator.blender.materials import make_material
+
+    scenes.new_scene(96, 64)
+    plane = scenes.add_plane("Ground", (200, 200), (0, 0, 0))
+    if material is not None:
+        plane.data.materials.append(make_material(material, 5))
+    scenes.add_sun()
+    scenes.add_camera((0, -10, 2.0), (math.radians(60), 0, 0))
+    return scenes.save(path)
+
+
+def patch_std(rgb: np.ndarray, mask: np.ndarray) -> float:
+    """Median over the patches lying wholly on ``mask`` of the intensity's standard deviation."""
+    h, w = mask.shape
+    grey = rgb.mean(axis=2)[: h // PATCH * PATCH, : w // PATCH * PATCH]
+    on = mask[: h // PATCH * PATCH, : w // PATCH * PATCH]
+    blocks = grey.reshape(h // PATCH, PATCH, w // PATCH, PATCH)
+    whole = on.reshape(h // PATCH, PATCH, w // PATCH, PATCH).all(axis=(1, 3))
+    return float(np.median(blocks.std(axis=(1, 3))[whole]))
+
+
+def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alone(tmp_path):
+    views = {}
+    for material in (None, "ground"):
+        sim = Simulator(ground_view(tmp_path / f"{material}.blend", material), points_density=0.5,
+                        segmentation_sensitivity=0.0)
+        sim.configure_render(engine="CYCLES", samples=16, denoise=False)
+        pose = sim.get_world_from_camera()
+        names = ["rgb_linear", "depth", "label", "normal"]
+        out = sim.render_outputs(names, pose[None], np.zeros((1, 0, 4, 4)), 0)
+        views[material] = {k: np.asarray(out[k]) for k in names}
+        views[material]["points"] = sim.compute_point_cloud(update_mask=False)[0]
+    plain, textured = views[None], views["ground"]
+    for key in ("depth", "label", "normal", "points"):
+        np.testing.assert_array_equal(plain[key], textured[key], err_msg=key)
+    ground = np.isfinite(plain["depth"]) & (plain["label"] >= 0)
+    assert ground.mean() > 0.5
+    rgb_plain, rgb_textured = plain["rgb_linear"], textured["rgb_linear"]
+    # 16 samples leave some noise on the plain plane; the texture's contrast is well above it
+    assert patch_std(rgb_textured, ground) > 3 * patch_std(rgb_plain, ground) + 0.001, (
+        patch_std(rgb_textured, ground), patch_std(rgb_plain, ground))
