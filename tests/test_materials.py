@@ -20,7 +20,7 @@ def test_every_material_declares_valid_layers():
     materials = all_materials()
     assert len(materials["ground"].patterns()) >= 4  # texture from tens of metres to centimetres
     scales = sorted(p.scale for p in materials["ground"].patterns())
-    assert scales[0] <= 0.1 and scales[-1] >= 50  # features per metre
+    assert scales[0] <= 0.1 and scales[-1] >= 20  # features per metre
     for name, m in materials.items():
         for p in m.patterns():
             assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1 and p.bump >= 0, name

@@ -61,10 +61,9 @@ class Material:
 
 
 # cast concrete, over its base pattern: stains and colour variation of half a metre to a few
-# metres, a mottle of centimetres (pores, aggregate), a fine grain with a little relief
-CONCRETE_LAYERS = (Pattern(0.6, (0.26, 0.25, 0.22), 0.6, detail=8.0),
-                   Pattern(12.0, (0.62, 0.61, 0.57), 0.45, kind="voronoi"),
-                   Pattern(40.0, (0.2, 0.2, 0.19), 0.35, detail=3.0, bump=0.15))
+# metres, and a mottle of centimetres (pores, aggregate)
+CONCRETE_LAYERS = (Pattern(0.6, (0.26, 0.25, 0.22), 0.6, detail=4.0),
+                   Pattern(12.0, (0.62, 0.61, 0.57), 0.45, detail=2.0))
 
 DEFAULT = "default"  # the material of faces whose material nobody declares
 
