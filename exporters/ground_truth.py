@@ -86,12 +86,23 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     comments = [f"{PLY_VERSION_COMMENT} {FORMAT_VERSION}", "units metres, world frame Z up",
                 f"labels {json.dumps(labels)}"]
 
+    placed = [p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)]
+    viewpoints = np.asarray(viewpoints, np.float64).reshape(-1, 3)
+    observable = _write_points_ply(folder, placed, label_ids, colors, comments, scoring_density, seed, viewpoints)
+    _write_mesh_ply(folder, parts, first, label_ids, colors, comments)
+    _write_scene_h5(folder, parts, labels, label_ids, surface, frames, dyn, matrices, fps, K, width, height, near,
+                    far, points_density, seed, scoring_density, viewpoints, observable)
+    return folder
+
+
+def _write_points_ply(folder: Path, placed: list[MeshPart], label_ids: dict, colors: np.ndarray, comments: list[str],
+                      scoring_density: float, seed: int, viewpoints: np.ndarray) -> np.ndarray:
+    """points.ply: the scoring cloud of ``placed`` (parts at the first frame) with its
+    observability flags, which it returns."""
     from generator.geometry.observability import observable_mask  # loads open3d (after bpy, if any)
     from generator.geometry.raycast import SceneGeometry
 
-    placed = [p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)]
     pts = sample_scoring_points(placed, label_ids, scoring_density, seed)
-    viewpoints = np.asarray(viewpoints, np.float64).reshape(-1, 3)
     observable = observable_mask(SceneGeometry(placed), pts["xyz"], pts["normals"], pts["instance"], viewpoints)
     c = colors[pts["label"]]
     write_ply(folder / "points.ply", {
@@ -100,7 +111,12 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
         "label": pts["label"], "instance": pts["instance"], "dynamic": pts["dynamic"].astype(np.uint8),
         "observable": observable.astype(np.uint8)},
         comments=comments + [f"scoring_density {scoring_density} points per square metre", f"seed {seed}"])
+    return observable
 
+
+def _write_mesh_ply(folder: Path, parts: list[MeshPart], first: list, label_ids: dict, colors: np.ndarray,
+                    comments: list[str]) -> None:
+    """mesh.ply: every part's triangles at the first frame (``first``: its matrices)."""
     verts, faces, vlabel, flabel, finst, offset = [], [], [], [], [], 0
     for i, (p, m) in enumerate(zip(parts, first)):
         verts.append(apply_affine(m, p.vertices) if p.dynamic else p.vertices)
@@ -116,6 +132,12 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
               faces=np.concatenate(faces), face={"label": np.concatenate(flabel), "instance": np.concatenate(finst)},
               comments=comments + ["objects at the first animation frame"])
 
+
+def _write_scene_h5(folder: Path, parts: list[MeshPart], labels: list[str], label_ids: dict, surface: dict,
+                    frames: np.ndarray, dyn: list[int], matrices: np.ndarray, fps: float, K: np.ndarray, width: int,
+                    height: int, near: float, far: float, points_density: float, seed: int, scoring_density: float,
+                    viewpoints: np.ndarray, observable: np.ndarray) -> None:
+    """scene.h5: the parts, their animation, the surface points, observability and camera."""
     with create_file(folder / "scene.h5") as f:  # checksummed (exporters/hdf5.py): damage fails to read
         f.attrs.update({"format_version": FORMAT_VERSION, "labels": text_attribute(json.dumps(labels)), "fps": float(fps),
                         "seed": int(seed), "points_density": float(points_density),
@@ -156,7 +178,6 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
         cam = f.create_group("camera")
         dataset(cam, "K", np.asarray(K, np.float64))
         cam.attrs.update({"width": int(width), "height": int(height), "near": float(near), "far": float(far)})
-    return folder
 
 
 def write_simulator_ground_truth(sim, folder: str | Path, seed: int,

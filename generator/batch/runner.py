@@ -109,6 +109,56 @@ def _claim(out: Path, seed: int, cfg: RunConfig, opts: Options) -> tuple[folders
     return None, SeedResult(seed, "skipped" if d.action == "skip" else d.action, d.message, d.summary or {}), None
 
 
+class _Progress:
+    """The run's progress on screen: an overall bar, one bar of frames per running seed (on
+    the first free row) and a line per result or note."""
+
+    def __init__(self, seeds: int, frames: int):
+        self.frames = frames
+        self.results: list[SeedResult] = []
+        self.bars: dict[int, tqdm] = {}
+        self.rows: dict[int, int] = {}  # the screen row of each seed's bar (0 is the overall bar)
+        self.overall = tqdm(total=seeds, desc="seeds", unit="seed", position=0, dynamic_ncols=True)
+
+    def report(self, r: SeedResult) -> None:
+        self.results.append(r)
+        self.overall.update(1)
+        tqdm.write(one_line(r))
+
+    def bar(self, seed: int) -> tqdm:
+        if seed not in self.bars:
+            self.rows[seed] = min(p for p in range(1, len(self.bars) + 2) if p not in self.rows.values())
+            self.bars[seed] = tqdm(total=self.frames, desc=f"seed {seed} frames", unit="frame",
+                                   position=self.rows[seed], leave=False, dynamic_ncols=True)
+        return self.bars[seed]
+
+    def handle(self, e: dict, locks: dict[int, folders.SeedLock]) -> None:
+        """One event of the executor (a result releases the seed's lock in ``locks``)."""
+        seed, kind = e["seed"], e["event"]
+        if kind == "result":
+            locks.pop(seed).release()
+            if seed in self.bars:
+                self.bars.pop(seed).close()
+                self.rows.pop(seed)
+            self.report(_result(e["outcome"], e["attempts"]))
+        elif kind == "note":
+            tqdm.write(f"seed {seed}: {e['message']}")
+        elif kind == "retry":
+            tqdm.write(f"seed {seed}: attempt {e['attempt'] - 1} lost ({e['cause']}); retrying: attempt "
+                       f"{e['attempt']} of {e['attempts']}, its partial folder removed first")
+            self.bar(seed).reset()
+        elif kind == "start":
+            self.bar(seed).total = e["frames"]
+            self.bar(seed).refresh()
+        elif kind == "frame":
+            self.bar(seed).update(1)
+
+    def close(self) -> None:
+        for b in self.bars.values():
+            b.close()
+        self.overall.close()
+
+
 def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, executor: Executor | None = None) -> list[SeedResult]:
     """Run ``seeds`` on ``executor`` (default: the local one with ``opts.workers`` processes);
     returns their results. Each seed is locked and decided here, computed by the executor,
@@ -119,46 +169,10 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
         executor = LocalExecutor(opts.workers)
     INTERRUPTED.clear()
     SIGNALS.clear()
-    results: list[SeedResult] = []
     pending = list(seeds)
     locks: dict[int, folders.SeedLock] = {}
-    bars: dict[int, tqdm] = {}
-    rows: dict[int, int] = {}  # the screen row of each seed's bar (0 is the overall bar)
     announced: set[int] = set()
-    overall = tqdm(total=len(seeds), desc="seeds", unit="seed", position=0, dynamic_ncols=True)
-
-    def report(r: SeedResult):
-        results.append(r)
-        overall.update(1)
-        tqdm.write(one_line(r))
-
-    def bar(seed: int) -> tqdm:
-        if seed not in bars:
-            rows[seed] = min(p for p in range(1, len(bars) + 2) if p not in rows.values())
-            bars[seed] = tqdm(total=cfg.frames * len(cfg.trajectories), desc=f"seed {seed} frames", unit="frame",
-                              position=rows[seed], leave=False, dynamic_ncols=True)
-        return bars[seed]
-
-    def handle(e: dict):
-        seed, kind = e["seed"], e["event"]
-        if kind == "result":
-            locks.pop(seed).release()
-            if seed in bars:
-                bars.pop(seed).close()
-                rows.pop(seed)
-            report(_result(e["outcome"], e["attempts"]))
-        elif kind == "note":
-            tqdm.write(f"seed {seed}: {e['message']}")
-        elif kind == "retry":
-            tqdm.write(f"seed {seed}: attempt {e['attempt'] - 1} lost ({e['cause']}); retrying: attempt "
-                       f"{e['attempt']} of {e['attempts']}, its partial folder removed first")
-            bar(seed).reset()
-        elif kind == "start":
-            bar(seed).total = e["frames"]
-            bar(seed).refresh()
-        elif kind == "frame":
-            bar(seed).update(1)
-
+    progress = _Progress(len(seeds), cfg.frames * len(cfg.trajectories))
     try:
         while pending or locks:
             waiting = []
@@ -166,7 +180,7 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
                 seed = pending.pop(0)
                 lock, settled, decision = _claim(out, seed, cfg, opts)
                 if settled:
-                    report(settled)
+                    progress.report(settled)
                 elif lock is None:
                     waiting.append(seed)
                     if seed not in announced:
@@ -180,19 +194,17 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
                                             executor=executor.name))
             pending = waiting + pending
             for e in executor.events(timeout=0.2):
-                handle(e)
+                progress.handle(e, locks)
             if INTERRUPTED.is_set():
                 raise KeyboardInterrupt
     except KeyboardInterrupt:
         executor.cancel_all()  # kills what runs, removes the partial folders it made
         for lock in locks.values():
             lock.release()
-        for b in bars.values():
-            b.close()
-        overall.close()
+        progress.close()
         raise
-    overall.close()
-    return results
+    progress.close()
+    return progress.results
 
 
 def _result(o: Outcome, attempts: int) -> SeedResult:
