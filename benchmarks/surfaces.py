@@ -42,11 +42,12 @@ def textureless(intensity: np.ndarray) -> np.ndarray:
 
 def frame_figures(rgb_png: Path, label_png: Path, ground: int, sift) -> dict[str, float]:
     """Counts of one frame: pixels, textureless pixels and keypoints, on ground and surfaces."""
-    rgb = np.asarray(Image.open(rgb_png).convert("RGB"), dtype=np.float32) / 255.0
-    label = np.asarray(Image.open(label_png), dtype=np.int64) - 1  # PNG: label id + 1, 0 = none
-    intensity = rgb.mean(axis=2)
-    flat = textureless(intensity)
-    grey = np.asarray(Image.open(rgb_png).convert("L"))
+    with Image.open(rgb_png) as im:
+        rgb8 = im.convert("RGB")
+    with Image.open(label_png) as im:
+        label = np.asarray(im, dtype=np.int64) - 1  # PNG: label id + 1, 0 = none
+    flat = textureless(np.asarray(rgb8, dtype=np.float32).mean(axis=2) / 255.0)
+    grey = np.asarray(rgb8.convert("L"))  # as COLMAP reads the image
     keypoints = np.array([(k.x, k.y) for k in sift.extract_from_uint8_array(grey)[0]]).reshape(-1, 2)
     cols = np.clip(np.floor(keypoints[:, 0]).astype(int), 0, label.shape[1] - 1)
     rows = np.clip(np.floor(keypoints[:, 1]).astype(int), 0, label.shape[0] - 1)
@@ -71,13 +72,15 @@ def seed_figures(seed: Path) -> dict[str, dict[str, float]]:
     for traj in sorted(p for p in seed.iterdir() if p.is_dir() and any(p.glob("rgb_*.png"))):
         total: dict[str, int] = {}
         frames = sorted(traj.glob("rgb_*.png"))
+        with Image.open(frames[0]) as im:
+            pixels = im.width * im.height
         for rgb in frames:
             for k, v in frame_figures(rgb, traj / rgb.name.replace("rgb_", "label_"), ground, sift).items():
                 total[k] = total.get(k, 0) + v
         share = lambda a, b: total[a] / total[b] if total[b] else float("nan")  # noqa: E731
         result[traj.name] = {
             "frames": len(frames),
-            "ground_share_of_pixels": total["ground_pixels"] / (len(frames) * np.prod(Image.open(frames[0]).size)),
+            "ground_share_of_pixels": total["ground_pixels"] / (len(frames) * pixels),
             "textureless_ground": share("ground_flat", "ground_pixels"),
             "textureless_surfaces": share("surfaces_flat", "surfaces_pixels"),
             "sift_per_10k_ground": 1e4 * share("ground_keypoints", "ground_pixels"),

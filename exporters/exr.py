@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -47,12 +48,14 @@ def use_all_cores() -> None:
     on the thread count (tested). A count set by the caller (non-zero) is kept. Called by the
     first write or read of a frame, not at import: a process that only imports this module
     starts no pool."""
-    if OpenEXR.global_thread_count() == 0:
-        OpenEXR.set_global_thread_count(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                                        else os.cpu_count() or 1)
+    with _POOL_LOCK:
+        if OpenEXR.global_thread_count() == 0:
+            OpenEXR.set_global_thread_count(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                            else os.cpu_count() or 1)
 
 
-_POOL_BEFORE_FORK = [0]  # the pool's thread count when this process last forked
+_POOL_LOCK = threading.Lock()  # held from before a fork to after it: no thread restarts the pool in between
+_POOL_BEFORE_FORK = [0]  # the pool's thread count when this process forked (one fork at a time: the lock)
 
 
 def _stop_pool_before_fork() -> None:
@@ -61,6 +64,7 @@ def _stop_pool_before_fork() -> None:
     that pool in the child joins threads that do not exist there (a crash). So the parent stops
     its pool (joining its own threads) before it forks; the child starts with none and makes
     its own on its first read; the parent gets its pool back after the fork."""
+    _POOL_LOCK.acquire()
     _POOL_BEFORE_FORK[0] = OpenEXR.global_thread_count()
     if _POOL_BEFORE_FORK[0]:
         OpenEXR.set_global_thread_count(0)
@@ -69,10 +73,17 @@ def _stop_pool_before_fork() -> None:
 def _restore_pool_after_fork() -> None:
     if _POOL_BEFORE_FORK[0]:
         OpenEXR.set_global_thread_count(_POOL_BEFORE_FORK[0])
+    _POOL_LOCK.release()
+
+
+def _fresh_lock_in_child() -> None:
+    global _POOL_LOCK
+    _POOL_LOCK = threading.Lock()  # the parent's is held by the forking thread, which the child lacks
 
 
 if hasattr(os, "register_at_fork"):
-    os.register_at_fork(before=_stop_pool_before_fork, after_in_parent=_restore_pool_after_fork)
+    os.register_at_fork(before=_stop_pool_before_fork, after_in_parent=_restore_pool_after_fork,
+                        after_in_child=_fresh_lock_in_child)
 
 
 def write_frame(path: str | Path, outputs: dict[str, np.ndarray], compression: str = "zip",

@@ -89,7 +89,7 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     placed = [p if not p.dynamic else _with_matrix(p, m) for p, m in zip(parts, first)]
     viewpoints = np.asarray(viewpoints, np.float64).reshape(-1, 3)
     observable = _write_points_ply(folder, placed, label_ids, colors, comments, scoring_density, seed, viewpoints)
-    _write_mesh_ply(folder, parts, first, label_ids, colors, comments)
+    _write_mesh_ply(folder, placed, label_ids, colors, comments)
     _write_scene_h5(folder, parts, labels, label_ids, surface, frames, dyn, matrices, fps, K, width, height, near,
                     far, points_density, seed, scoring_density, viewpoints, observable)
     return folder
@@ -114,12 +114,13 @@ def _write_points_ply(folder: Path, placed: list[MeshPart], label_ids: dict, col
     return observable
 
 
-def _write_mesh_ply(folder: Path, parts: list[MeshPart], first: list, label_ids: dict, colors: np.ndarray,
+def _write_mesh_ply(folder: Path, placed: list[MeshPart], label_ids: dict, colors: np.ndarray,
                     comments: list[str]) -> None:
-    """mesh.ply: every part's triangles at the first frame (``first``: its matrices)."""
+    """mesh.ply: every part's triangles at the first frame (``placed``: the parts with their
+    first frame's matrices)."""
     verts, faces, vlabel, flabel, finst, offset = [], [], [], [], [], 0
-    for i, (p, m) in enumerate(zip(parts, first)):
-        verts.append(apply_affine(m, p.vertices) if p.dynamic else p.vertices)
+    for i, p in enumerate(placed):
+        verts.append(apply_affine(p.matrix, p.vertices) if p.dynamic else p.vertices)
         faces.append(p.faces + offset)
         offset += len(p.vertices)
         vlabel.append(np.full(len(p.vertices), label_ids[p.label], np.int32))

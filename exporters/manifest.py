@@ -20,7 +20,7 @@ MANIFEST = "manifest.json"
 PARTIAL_MARKER = ".buildee-partial"  # written first into a folder being generated; never listed
 REQUIRED = ("format_version", "seed", "config", "files")
 MAX_MANIFEST_BYTES = 256 << 20  # a manifest of 10,000 frames x 3 kinds is about 20 MB
-CHECKSUM = "checksum"  # sha256 of the rest of the manifest (_checksum); manifests before it have none
+CHECKSUM = "checksum"  # sha256 of the rest of the manifest (json_checksum); manifests before it have none
 
 
 class ManifestError(ValueError):
@@ -76,15 +76,15 @@ def write_manifest(folder: str | Path, info: dict) -> Path:
     tmp = folder / f".{MANIFEST}.tmp"
     doc = info | {"files": files}
     with open(tmp, "w") as f:
-        f.write(json.dumps(doc | {CHECKSUM: _checksum(doc)}, indent=1, sort_keys=True))
+        f.write(json.dumps(doc | {CHECKSUM: json_checksum(doc)}, indent=1, sort_keys=True))
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
     return path
 
 
-def _checksum(doc: dict) -> str:
-    """sha256 of ``doc`` (a manifest without its checksum) as compact JSON with sorted keys."""
+def json_checksum(doc: dict) -> str:
+    """sha256 of ``doc`` (e.g. a manifest without its checksum) as compact JSON with sorted keys."""
     return hashlib.sha256(json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
@@ -125,7 +125,7 @@ def load_manifest(folder: str | Path) -> dict:
     problem = _schema_problem(manifest)
     if problem:
         raise ManifestError(f"{path}: {problem}")
-    if CHECKSUM in manifest and manifest[CHECKSUM] != _checksum({k: v for k, v in manifest.items() if k != CHECKSUM}):
+    if CHECKSUM in manifest and manifest[CHECKSUM] != json_checksum({k: v for k, v in manifest.items() if k != CHECKSUM}):
         raise ManifestError(f"{path}: damaged (its contents differ from its own checksum)")
     return manifest
 

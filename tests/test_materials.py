@@ -23,7 +23,7 @@ def test_every_material_declares_valid_layers():
     assert scales[0] <= 0.1 and scales[-1] >= 20  # features per metre
     for name, m in materials.items():
         for p in m.patterns():
-            assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1 and p.bump >= 0, name
+            assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1, name
             assert all(0 <= c <= 1 for c in p.colour), name
     with pytest.raises(ValueError, match="Pattern kind 'wave' is unknown; choose one of noise, voronoi"):
         Pattern(1.0, (0.5, 0.5, 0.5), 0.5, kind="wave")

@@ -132,11 +132,10 @@ class _Progress:
                                    position=self.rows[seed], leave=False, dynamic_ncols=True)
         return self.bars[seed]
 
-    def handle(self, e: dict, locks: dict[int, folders.SeedLock]) -> None:
-        """One event of the executor (a result releases the seed's lock in ``locks``)."""
+    def handle(self, e: dict) -> None:
+        """Show one event of the executor."""
         seed, kind = e["seed"], e["event"]
         if kind == "result":
-            locks.pop(seed).release()
             if seed in self.bars:
                 self.bars.pop(seed).close()
                 self.rows.pop(seed)
@@ -194,7 +193,9 @@ def run_seeds(out: Path, seeds: list[int], cfg: RunConfig, opts: Options, execut
                                             executor=executor.name))
             pending = waiting + pending
             for e in executor.events(timeout=0.2):
-                progress.handle(e, locks)
+                if e["event"] == "result":
+                    locks.pop(e["seed"]).release()
+                progress.handle(e)
             if INTERRUPTED.is_set():
                 raise KeyboardInterrupt
     except KeyboardInterrupt:

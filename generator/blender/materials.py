@@ -13,9 +13,8 @@ import numpy as np
 
 from ..geometry.seeding import stream
 from ..scene.kinds import all_materials
-from ..scene.materials import DEFAULT, Material
+from ..scene.materials import DEFAULT
 
-RECIPES: dict[str, Material] = all_materials()  # every declared material by name (generator/scene/materials.py)
 
 
 def _jitter(rgb, rng: np.random.Generator, hue=0.02, sat=0.1, val=0.12):
@@ -31,7 +30,8 @@ def make_material(key: str, seed: int):
     name = f"site_{key}"
     if name in bpy.data.materials:
         return bpy.data.materials[name]
-    recipe = RECIPES.get(key, RECIPES[DEFAULT])
+    recipes = all_materials()  # read now: a kind registered after this module's import has its materials
+    recipe = recipes.get(key, recipes[DEFAULT])
     rng = stream(seed, "material", key)
     mat = bpy.data.materials.new(name)
     if mat.node_tree is None:
@@ -55,17 +55,12 @@ def make_material(key: str, seed: int):
     return mat
 
 
-BUMP_DISTANCE = 0.01  # metres of relief per unit of a layer's ``bump`` (Pattern.bump is in centimetres)
-
-
 def _add_layers(mat, bsdf, layers, colour, rng: np.random.Generator) -> None:
     """Each layer's texture (object coordinates: features per metre) mixes the colour so far
-    towards the layer's (jittered) colour; layers with ``bump`` add up into the height of a
-    Bump node on the BSDF's normal."""
+    towards the layer's (jittered) colour."""
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     coords = nodes.new("ShaderNodeTexCoord")
     current = None  # the colour so far: an output socket, or None for the base colour
-    height = None
     for layer in layers:
         fac = _layer_factor(nodes, links, coords.outputs["Object"], layer, rng)
         mix = nodes.new("ShaderNodeMix")
@@ -81,25 +76,7 @@ def _add_layers(mat, bsdf, layers, colour, rng: np.random.Generator) -> None:
             links.new(current, mix.inputs["A"])
         mix.inputs["B"].default_value = (*_jitter(layer.colour, rng), 1.0)
         current = mix.outputs["Result"]
-        if layer.bump:
-            scaled = nodes.new("ShaderNodeMath")
-            scaled.operation = "MULTIPLY"
-            links.new(fac, scaled.inputs[0])
-            scaled.inputs[1].default_value = layer.bump
-            if height is None:
-                height = scaled.outputs[0]
-            else:
-                total = nodes.new("ShaderNodeMath")
-                total.operation = "ADD"
-                links.new(height, total.inputs[0])
-                links.new(scaled.outputs[0], total.inputs[1])
-                height = total.outputs[0]
     links.new(current, bsdf.inputs["Base Color"])
-    if height is not None:
-        bump = nodes.new("ShaderNodeBump")
-        bump.inputs["Distance"].default_value = BUMP_DISTANCE
-        links.new(height, bump.inputs["Height"])
-        links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
 
 
 def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator):

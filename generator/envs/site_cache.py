@@ -24,7 +24,6 @@ never the folder of a build under way).
 from __future__ import annotations
 
 import fcntl
-import hashlib
 import json
 import os
 import re
@@ -34,6 +33,8 @@ import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
+
+from exporters.manifest import json_checksum, sha256
 
 MARKER = ".buildee-site-cache"  # written first into a build's folder; the entry's record at the end
 SIGNATURE = "buildee-sites site cache"  # the marker's first key holds it
@@ -116,18 +117,9 @@ def remove_leftovers(entry: Path) -> list[Path]:
 
 
 # ---- records ------------------------------------------------------------------------------
-def _checksum(files: dict) -> str:
-    return hashlib.sha256(json.dumps(files, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
-
-
-def _sha256(path: Path) -> str:
-    with open(path, "rb") as f:
-        return hashlib.file_digest(f, "sha256").hexdigest()
-
-
 def _readable_sha256(path: Path) -> str | None:
     try:
-        return _sha256(path)
+        return sha256(path)
     except OSError:
         return None
 
@@ -141,8 +133,8 @@ def _seal(folder: Path) -> None:
             continue
         if path.is_symlink() or not path.is_file():
             raise RuntimeError(f"the site build wrote {path}, not a regular file; the cache holds files only")
-        files[name] = {"bytes": path.stat().st_size, "sha256": _sha256(path)}
-    text = json.dumps({"written_by": SIGNATURE, "files": files, "checksum": _checksum(files)}, indent=1)
+        files[name] = {"bytes": path.stat().st_size, "sha256": sha256(path)}
+    text = json.dumps({"written_by": SIGNATURE, "files": files, "checksum": json_checksum(files)}, indent=1)
     tmp = folder / f"{MARKER}.tmp"
     tmp.write_text(text)
     os.replace(tmp, folder / MARKER)  # a build killed here leaves a marker either way
@@ -159,7 +151,7 @@ def _read_record(marker: Path) -> tuple[dict | None, bool]:
     files = record.get("files") if isinstance(record, dict) and record.get("written_by") == SIGNATURE else None
     if not isinstance(files, dict) or not all(_well_formed(name, meta) for name, meta in files.items()):
         return None, False
-    return files, record.get("checksum") == _checksum(files)
+    return files, record.get("checksum") == json_checksum(files)
 
 
 def _well_formed(name, meta) -> bool:

@@ -21,15 +21,14 @@ class Pattern:
     gravel): a ``kind`` of texture (``noise``: fractal noise of ``detail`` octaves;
     ``voronoi``: cells, e.g. stones, each of its own brightness) of ``scale`` features per
     metre (in the object's own coordinates), blending towards ``colour`` (linear RGB) with
-    weight up to ``strength``, and raising the surface by up to ``bump`` centimetres (a
-    shading normal only: the geometry, and so every ground-truth output, is unchanged)."""
+    weight up to ``strength``. Colour only: the geometry, and so every ground-truth output,
+    is unchanged."""
 
     scale: float
     colour: tuple[float, float, float]
     strength: float
     kind: str = "noise"
     detail: float = 6.0
-    bump: float = 0.0
 
     def __post_init__(self):
         if self.kind not in PATTERN_KINDS:

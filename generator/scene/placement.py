@@ -102,16 +102,27 @@ class Placer:
         grown = fp.grown(self.margin)
         return not any(overlaps(grown, other) for other in self.taken)
 
-    def try_place(self, asset: Asset, candidates) -> PlacedAsset | None:
-        """The asset at the first candidate ((x, y), yaw) where it fits (its footprint is
-        then taken), or None."""
+    def first_fit(self, asset: Asset, candidates) -> tuple[float, float, float, Footprint] | None:
+        """(x, y, yaw, footprint) of the first candidate ((x, y), yaw) where ``asset`` fits,
+        or None; nothing is taken."""
         bounds = local_bounds(asset)  # once: the asset is the same at every candidate
         for (x, y), yaw in candidates:
             fp = footprint_at(asset, (x, y), yaw, bounds)
             if self.fits(fp):
-                self.taken.append(fp)
-                return PlacedAsset(asset, (float(x), float(y)), float(yaw), fp)
+                return float(x), float(y), float(yaw), fp
         return None
+
+    def try_place(self, asset: Asset, candidates) -> PlacedAsset | None:
+        """The asset at the first candidate ((x, y), yaw) where it fits (its footprint is
+        then taken), or None."""
+        fit = self.first_fit(asset, candidates)
+        return None if fit is None else self.take(asset, fit[:2], fit[2], fit[3])
+
+    def take(self, asset: Asset, position, yaw: float, fp: Footprint) -> PlacedAsset:
+        """Place ``asset`` at ``position`` turned by ``yaw``, its footprint ``fp`` (checked by
+        the caller with :meth:`fits`) taken."""
+        self.taken.append(fp)
+        return PlacedAsset(asset, (float(position[0]), float(position[1])), float(yaw), fp)
 
 
 def layout_candidates(rng: np.random.Generator, layout: str, lo: float, hi: float, n: int, centres=None,

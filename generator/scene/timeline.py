@@ -29,7 +29,7 @@ from ..checks import check_integer
 from ..geometry.seeding import stream
 from .assets import Asset
 from .kinds import all_kinds, kind as kind_named
-from .placement import PlacedAsset, Placer, SiteArea, band_candidates, footprint_at, near_then_anywhere
+from .placement import PlacedAsset, Placer, SiteArea, band_candidates, near_then_anywhere
 
 MAX_STAGES = 16
 DELIVERIES = (1, 2)  # new material assets per stage (inclusive)
@@ -64,13 +64,12 @@ class StageStep:
 
     def relocate(self, placed: PlacedAsset, candidates) -> bool:
         """Move ``placed`` to the first candidate whose footprint is free; False if none is."""
-        placer = self.placer(moving=placed)
-        for (x, y), yaw in candidates:
-            fp = footprint_at(placed.asset, (x, y), yaw)
-            if placer.fits(fp):
-                placed.position, placed.yaw, placed.footprint = (float(x), float(y)), float(yaw), fp
-                return True
-        return False
+        fit = self.placer(moving=placed).first_fit(placed.asset, candidates)
+        if fit is None:
+            return False
+        x, y, yaw, placed.footprint = fit
+        placed.position, placed.yaw = (x, y), yaw
+        return True
 
     def add(self, asset: Asset, candidates, uid: int) -> bool:
         """Place a new ``asset`` (identity ``uid``) at the first free candidate; False if none is."""

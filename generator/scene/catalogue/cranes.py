@@ -109,7 +109,7 @@ def crane_trolley_and_hook(mast_top: float, hook_height: float) -> tuple[MeshBui
     return trolley, hook
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CraneDraws:
     """Everything a tower crane draws from its stream, in the order it draws it (metres,
     radians, radians a second)."""
@@ -215,11 +215,12 @@ def plan_cranes(site, kind: AssetKind) -> None:
             pos, jib, hook = spot
             draws = CraneDraws.draw(crng, jib)
             yaw = float(crng.uniform(0, math.pi / 2))
-            if not site.placer.fits(Footprint((float(pos[0]), float(pos[1])), FOOTPRINT, yaw)):
+            fp = Footprint((float(pos[0]), float(pos[1])), FOOTPRINT, yaw)  # footprint_at's, without the meshes
+            if not site.placer.fits(fp):
                 continue  # its meshes are built only where it fits (they take most of a plan's time)
             asset = crane_from(draws, hook, jib, params.frames, params.fps,
                                slew_offset(site.seed, k, plan.stage) if plan.stages > 1 else 0.0)
-            plan.placed.append(site.placer.try_place(asset, [((pos[0], pos[1]), yaw)]))
+            plan.placed.append(site.placer.take(asset, pos, yaw, fp))
             cranes.append((pos, jib + 1.0, asset.info["top"]))
             break
         else:

@@ -24,8 +24,7 @@ register(AssetKind(
     name="Ground", classes=("Ground",), build=ground_part, order=0,
     # compacted soil with texture at every scale a camera sees: damp and dry areas tens of
     # metres across, patches of a metre, clods of decimetres, gravel of centimetres; roughness and
-    # specular drawn per seed as the paper's ground. No bump: on its two Voronoi layers it
-    # made the preview preset 1.45x slower a frame (1.20x without; docs/benchmarks.md)
+    # specular drawn per seed as the paper's ground
     materials=(Material("ground", (0.23, 0.18, 0.12), 0.9, 0.0, Pattern(0.04, (0.12, 0.1, 0.07), 0.6, detail=4.0),
                         roughness_range=(0.5, 1.0), specular_range=(0.1, 0.7),
                         layers=(Pattern(0.5, (0.38, 0.33, 0.26), 0.7, detail=4.0),
