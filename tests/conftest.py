@@ -9,6 +9,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 os.environ.setdefault("BUILDEE_BLENDER_LOG", str(Path(os.environ.get("TMPDIR", "/tmp")) / f"buildee-tests-{os.getpid()}.log"))
 
+import fcntl  # noqa: E402
+import json  # noqa: E402
 import subprocess  # noqa: E402
 
 import pytest  # noqa: E402
@@ -63,15 +65,32 @@ def assert_refused(r: subprocess.CompletedProcess, *words) -> str:
     return lines[0]
 
 
+def built_once(tmp_path_factory, name: str, build) -> tuple[Path, subprocess.CompletedProcess]:
+    """``build(folder)`` (a run of the batch job) done once per test session, however many
+    pytest-xdist workers ask: the first to take the lock builds in the session's shared
+    temporary folder and records the finished process; the others wait and reuse the folder.
+    Returns (folder, the completed process)."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    folder, record = root / name, root / f"{name}.done.json"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not record.is_file():
+            folder.mkdir(exist_ok=True)
+            r = build(folder)
+            assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+            record.write_text(json.dumps({"args": r.args, "stdout": r.stdout, "stderr": r.stderr}))
+        done = json.loads(record.read_text())
+    return folder, subprocess.CompletedProcess(done["args"], 0, done["stdout"], done["stderr"])
+
+
 @pytest.fixture(scope="session")
 def finished(tmp_path_factory):
     """(output folder, completed process) of one tiny run of seed 4, written by the real pipeline;
     shared by the tests of the exports, the evaluation and the loaders."""
-    out = tmp_path_factory.mktemp("batch")
     # a relative --out, from a folder that is not the repository (workers run elsewhere)
-    r = run_generator(out.name, "--seeds", "4", "--colmap-text", cwd=out.parent)
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    return out, r
+    return built_once(tmp_path_factory, "batch",
+                      lambda out: run_generator(out.name, "--seeds", "4", "--colmap-text", cwd=out.parent))
 
 
 @pytest.fixture(scope="session")
@@ -103,7 +122,6 @@ def timeline_seed_folder(tmp_path_factory):
     """A real timeline seed of 3 stages (python -m generator --phases 3, seed 1, orbit only),
     built once and shared read-only by the tests of the timeline, its readers, the viewer and
     the write guard (a test that changes it works on a copy)."""
-    out = tmp_path_factory.mktemp("timeline")
-    r = run_generator(out, "--seeds", "1", "--phases", "3", "--trajectory", "orbit")
-    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    out, _ = built_once(tmp_path_factory, "timeline",
+                        lambda out: run_generator(out, "--seeds", "1", "--phases", "3", "--trajectory", "orbit"))
     return out / "seed_000001"
