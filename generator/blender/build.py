@@ -18,6 +18,7 @@ from ..scene.taxonomy import CLASSES
 from . import session
 from .materials import make_material
 from .render import apply_settings, resolve_settings
+from .sky import build_sky
 
 LABEL_TABLE_PROPERTY = "buildee_labels"
 SITE_PROPERTY = "buildee_site"
@@ -122,36 +123,6 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
     return objects
 
 
-def _sun_and_sky(seed: int) -> dict:
-    from ..geometry.seeding import stream
-
-    rng = stream(seed, "lighting")
-    elevation = float(rng.uniform(np.radians(20), np.radians(70)))
-    azimuth = float(rng.uniform(0, 2 * np.pi))
-    sun_data = bpy.data.lights.new("Sun", "SUN")
-    sun_data.energy = float(rng.uniform(2.5, 4.5))
-    sun_data.angle = float(np.radians(rng.uniform(0.5, 3.0)))
-    sun = bpy.data.objects.new("Sun", sun_data)
-    bpy.context.scene.collection.objects.link(sun)
-    # a sun light shines along its -Z: point -Z from the sun towards the ground
-    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, azimuth + math.pi / 2)
-    world = bpy.data.worlds.new("Sky")
-    bpy.context.scene.world = world
-    if world.node_tree is None:
-        world.use_nodes = True
-    nodes, links = world.node_tree.nodes, world.node_tree.links
-    sky = nodes.new("ShaderNodeTexSky")
-    sky.sky_type = "HOSEK_WILKIE"
-    sky.turbidity = float(rng.uniform(2.0, 5.0))
-    sky.ground_albedo = float(rng.uniform(0.2, 0.4))
-    (se, ce), (sa, ca) = sincos(elevation), sincos(azimuth)
-    sky.sun_direction = (ce * ca, ce * sa, se)
-    bg = nodes.get("Background") or nodes.new("ShaderNodeBackground")
-    bg.inputs["Strength"].default_value = float(rng.uniform(3.0, 5.0))
-    links.new(sky.outputs["Color"], bg.inputs["Color"])
-    return {"sun_elevation_deg": math.degrees(elevation), "sun_azimuth_deg": math.degrees(azimuth)}
-
-
 def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -> dict:
     """Replace the open file with the planned site; returns counts per class."""
     session.new_empty_file()
@@ -171,7 +142,7 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
         for index, placed in enumerate(plan.placed):
             add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index,
                       uid=placed.uid if timeline else None)
-        lighting = _sun_and_sky(seed)
+        build_sky(plan.weather)
         lo, hi = plan.spawn_box
         spawn = bpy.data.objects.new("CameraSpawn", mesh_from_data("CameraSpawn", _box_data(lo, hi), seed))
         scene.collection.objects.link(spawn)
@@ -189,7 +160,7 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
         apply_settings(resolve_settings("default", resolution=resolution))
         scene.frame_set(1)
     scene[LABEL_TABLE_PROPERTY] = json.dumps(list(CLASSES))
-    summary = plan.summary() | {"lighting": lighting}
+    summary = plan.summary()
     scene[SITE_PROPERTY] = json.dumps(summary, default=float)
     counts: dict[str, int] = {}
     triangles = 0

@@ -31,6 +31,7 @@ from ..render_settings import ENGINES, PRESETS, RenderSettings, resolve_settings
 from . import devices, session
 from .devices import DeviceUnavailableError  # noqa: F401
 from .egl import require_gpu_context
+from .sky import MIST_DEPTH, fog_of_scene
 
 def apply_settings(settings: RenderSettings) -> None:
     """Write settings into the open scene (None fields are left as the .blend has them;
@@ -167,7 +168,45 @@ class Renderer:
         out.format.tiff_codec = "NONE"
         out.save_as_render = True  # Blender's view transform, as in its own PNG output
         out.file_output_items.new("RGBA", "Image")
-        tree.links.new(layers.outputs["Image"], out.inputs[0])
+        image = layers.outputs["Image"]
+        self.fog = fog_of_scene(scene)
+        if self.fog is not None:
+            image = self._fogged(tree, layers, image)
+        tree.links.new(image, out.inputs[0])
+
+    def _fogged(self, tree, layers, image):
+        """``image`` seen through the scene's fog (generator/blender/sky.py): mixed with the fog's
+        colour by the transmittance exp(-extinction x distance) along each pixel's ray, the
+        distance from Cycles' Mist pass (ray length, linear from 0 to MIST_DEPTH; the sky is
+        at MIST_DEPTH, so fully fogged). Also written as a linear EXR, the fogged ``Combined``."""
+        scene = bpy.context.scene
+        for vl in scene.view_layers:
+            vl.use_pass_mist = True
+        mist = scene.world.mist_settings
+        mist.start, mist.depth, mist.falloff = 0.0, MIST_DEPTH, "LINEAR"
+        optical = tree.nodes.new("ShaderNodeMath")
+        optical.operation = "MULTIPLY"
+        tree.links.new(layers.outputs["Mist"], optical.inputs[0])
+        optical.inputs[1].default_value = -self.fog["extinction_per_m"] * MIST_DEPTH
+        transmittance = tree.nodes.new("ShaderNodeMath")
+        transmittance.operation = "EXPONENT"
+        tree.links.new(optical.outputs[0], transmittance.inputs[0])
+        mix = tree.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        tree.links.new(transmittance.outputs[0], mix.inputs["Factor"])
+        mix.inputs["A"].default_value = (*self.fog["colour"], 1.0)
+        tree.links.new(image, mix.inputs["B"])
+        linear = tree.nodes.new("CompositorNodeOutputFile")
+        linear.directory = self.tmpdir + os.sep
+        linear.file_name = "fogged"
+        linear.format.media_type = "IMAGE"
+        linear.format.file_format = "OPEN_EXR"
+        linear.format.color_depth = "32"
+        linear.format.exr_codec = "NONE"
+        linear.format.color_mode = "RGB"
+        linear.file_output_items.new("RGBA", "Image")
+        tree.links.new(mix.outputs["Result"], linear.inputs[0])
+        return mix.outputs["Result"]
 
     def render(self, passes: Iterable[BlenderPass], alongside: Callable[[], object] | None = None,
                off: Iterable[BlenderPass] = ()) -> dict[str, object]:
@@ -193,7 +232,12 @@ class Renderer:
             tif = glob.glob(os.path.join(self.tmpdir, "display*.tif*"))
             if not exr or not tif:
                 raise RuntimeError(f"Blender wrote no render output (see its log: {session.log_path()})")
-            decoded = decode_passes(read_blender_exr(exr[0]) | read_display_tiff(tif[0]), passes)
+            channels = read_blender_exr(exr[0])
+            if self.fog is not None:  # the fogged image stands for the render's Combined pass
+                fogged = read_blender_exr(glob.glob(os.path.join(self.tmpdir, "fogged*.exr"))[0])
+                for key in [k for k in channels if k.split(".")[-2:-1] == ["Combined"] and k[-1] in "RGB"]:
+                    channels[key] = fogged[key.rsplit(".", 1)[1]]
+            decoded = decode_passes(channels | read_display_tiff(tif[0]), passes)
             self.last_timings = {"blender_render_and_write": t1 - t0, "read_passes": time.perf_counter() - t1}
             return decoded
         finally:

@@ -39,7 +39,6 @@ class PointBlocks:
     """
 
     def __init__(self, points: np.ndarray, normals: np.ndarray | None, part_index: np.ndarray):
-        n = len(points)
         part = np.asarray(part_index, dtype=np.int64)
         lo, hi = points.min(axis=0), points.max(axis=0)
         scale = 1023.0 / max(float(np.max(hi - lo)), 1e-9)

@@ -11,6 +11,7 @@ from ..checks import MAX_SEED
 from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder
 from .site import LAYOUTS, PRESETS
 from .timeline import MAX_STAGES
+from .weather import WEATHERS
 
 
 def main(argv=None) -> int:
@@ -29,12 +30,13 @@ def main(argv=None) -> int:
                    help=f"stages of the site's timeline, 1 to {MAX_STAGES} (default: 1; docs/phases.md)")
     p.add_argument("--stage", type=int_at_least(0, "stage", MAX_STAGES - 1), default=0,
                    help="which stage of the timeline to build, 0 to stages-1 (default: 0)")
+    p.add_argument("--weather", choices=WEATHERS, help="sky and weather (default: drawn per seed; docs/scenes.md)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
     check_out_folder(p, args.out)
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
-    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames") if getattr(args, k) is not None}
+    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather") if getattr(args, k) is not None}
     from . import build_site
 
     from exporters.write_guard import WriteRefused, claim_folder

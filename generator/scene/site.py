@@ -25,6 +25,7 @@ from .kinds import all_kinds, kind as kind_named
 from .placement import PlacedAsset, Placer, SiteArea  # noqa: F401  (PlacedAsset: the plan's entries)
 from .planning import SiteState
 from .timeline import advance, check_stage
+from .weather import Weather, check_weather, choose_weather
 
 LAYOUTS = ("grid", "scattered", "clustered")
 GATE = (-4.0, 4.0)  # x range of the gate in the south fence, metres
@@ -40,7 +41,8 @@ class SiteParams:
     planned floors built, in [0, 1] (None: drawn per building in [0.25, 1]); frames and fps:
     animation length and rate. buildings, trucks, excavators: (fewest, most) of each; counts:
     the same for the catalogue's other counted kinds, ((kind, (fewest, most)), ...) sorted by
-    kind (a kind absent has none; the presets take them from the kinds' entries).
+    kind (a kind absent has none; the presets take them from the kinds' entries); weather: a
+    state of generator/scene/weather.py (None: drawn per seed).
     """
 
     size: float = 100.0
@@ -55,6 +57,7 @@ class SiteParams:
     frames: int = 250
     fps: float = 10.0
     counts: tuple[tuple[str, tuple[int, int]], ...] = ()
+    weather: str | None = None
 
     @property
     def min_size(self) -> float:
@@ -74,6 +77,7 @@ class SiteParams:
             check_number("construction phase", self.phase, 0, 1)
         check_integer("animation length", self.frames, 2, valid="an integer >= 2 frames")
         check_number("fps", self.fps, 0, open_low=True)
+        check_weather(self.weather)
         counts = checked_counts(self.counts)
         return self if counts == self.counts else replace(self, counts=counts)
 
@@ -147,6 +151,7 @@ class SitePlan:
     stages: int = 1
     reserved: list[Footprint] = field(default_factory=list)  # ground kept free of assets (roads, gate access)
     area: SiteArea | None = None  # where props go (inside the road loop, the band along the fence)
+    weather: Weather | None = None  # sky, sun and weather (generator/scene/weather.py)
 
     def summary(self) -> dict:
         """site.json's plan: seed, parameters, assets per kind, skipped ones, hook height; a
@@ -156,14 +161,15 @@ class SitePlan:
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
         params = asdict(self.params)
-        if not params["counts"]:
-            del params["counts"]  # the first release's sites have none: their site.json stays as it was
+        for name in ("counts", "weather"):
+            if not params[name]:
+                del params[name]  # the first release's sites have none: their site.json stays as it was
         added = {name: kind_named(name).module for name, (_, most) in self.params.counts if most > 0}
         added |= {p.asset.kind: kind_named(p.asset.kind).module for p in self.placed
                   if not kind_named(p.asset.kind).shared_streams}
         timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return ({"seed": self.seed, "params": params, "assets": kinds, "skipped": self.skipped,
-                 "hook_height_m": self.hook_height} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
+                 "hook_height_m": self.hook_height, "weather": self.weather.summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
 
 
 def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:
@@ -191,7 +197,7 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
 def lay_out(seed: int, params: SiteParams, stage: int, stages: int) -> SiteState:
     """The empty site: the road loop, the ground kept free (road, gate access), where props
     go, and the planning state the kinds place themselves on."""
-    plan = SitePlan(seed, params, stage=stage, stages=stages)
+    plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather))
     half = params.size / 2
     road_half = half - params.road_inset
     plan.road = road_loop(road_half, 8.0)

@@ -1,0 +1,118 @@
+"""Sky, light and weather of a site, chosen per seed (bpy-free): what :mod:`generator.blender.sky`
+builds and site.json records (``weather``).
+
+A seed draws one :data:`WEATHERS` state with the state's weight (``--weather NAME`` picks it
+instead), then the state's parameters from their ranges, from the seed's own ``weather``
+stream (no other stream moves, so the layout of a site does not depend on its weather):
+
+- ``clear``: Hosek-Wilkie sky of low turbidity, sharp sun shadows;
+- ``hazy``: the same sky with high turbidity (a whiter sky, softer and weaker sun);
+- ``partly-cloudy``: the clear sky with procedural clouds covering ``cloud_cover`` of it;
+- ``overcast``: the CIE overcast sky (luminance (1 + 2 sin(elevation)) / 3 of the zenith's),
+  a weak, very soft sun behind the clouds;
+- ``fog``: the overcast sky and fog of meteorological visibility ``fog_visibility_m``
+  (extinction 3.912 / visibility per metre along each camera ray: Koschmieder's law);
+- ``after-rain``: an overcast or cloudy sky and wet ground (darker, glossier, with puddles).
+
+Sun elevations are uniform in [5, 80] degrees (dawn to midday), azimuths in [0, 360).
+Weather changes what the cameras see, never the geometry: depth, labels, instances,
+normals, flow, points, boxes and every other ground-truth output are the same whatever the
+weather (docs/scenes.md, "Sky, light and weather").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from ..geometry.seeding import stream
+
+SUN_ELEVATION_DEG = (5.0, 80.0)
+# name: (weight per seed, sky) -- the weights sum to 1
+WEATHERS = {
+    "clear": (0.25, "clear"),
+    "hazy": (0.20, "hazy"),
+    "partly-cloudy": (0.20, "partly-cloudy"),
+    "overcast": (0.15, "overcast"),
+    "fog": (0.10, "overcast"),
+    "after-rain": (0.10, None),  # overcast or partly cloudy, drawn
+}
+# metres: fog of meteorological visibility 150-600 m (thick to light fog)
+FOG_VISIBILITY_M = (150.0, 600.0)
+
+
+@dataclass(frozen=True)
+class Weather:
+    """One site's sky, sun and weather. Angles in degrees, the sun's azimuth counter-clockwise
+    from +x (east) in the site's frame; ``sun_strength``: Blender sun irradiance (W/m^2);
+    ``sun_angle_deg``: the sun's angular diameter (shadow softness); ``turbidity``: Hosek-Wilkie
+    haze (2 clear, 10 very hazy); ``sky_strength``: the sky's radiance scale; ``cloud_cover``:
+    share of the sky covered by clouds (1 for overcast); ``fog_visibility_m``: meteorological
+    visibility in metres (None: no fog); ``wetness``: 0 dry ground to 1 soaked, with puddles;
+    ``exposure_ev``: the camera's exposure compensation (stops), set from the light so that
+    dim scenes are exposed as a camera's automatic exposure would."""
+
+    name: str
+    sky: str
+    sun_elevation_deg: float
+    sun_azimuth_deg: float
+    sun_strength: float
+    sun_angle_deg: float
+    turbidity: float
+    sky_strength: float
+    cloud_cover: float
+    fog_visibility_m: float | None
+    wetness: float
+    exposure_ev: float
+
+    def summary(self) -> dict:
+        """site.json's ``weather``: every field."""
+        return asdict(self)
+
+    @property
+    def fog_extinction_per_m(self) -> float:
+        """Extinction coefficient of the fog (1/m): 3.912 / visibility (the distance at which a
+        black object keeps 2% contrast); 0 without fog."""
+        return 0.0 if self.fog_visibility_m is None else 3.912 / self.fog_visibility_m
+
+
+def check_weather(name: str | None) -> str | None:
+    """``name`` if it names a weather state (or is None: drawn per seed); ValueError otherwise."""
+    if name is not None and name not in WEATHERS:
+        raise ValueError(f"unknown weather {name!r}; choose one of {', '.join(WEATHERS)}")
+    return name
+
+
+def choose_weather(seed: int, name: str | None = None) -> Weather:
+    """The weather of the site of ``seed``: the state ``name``, or one drawn by its weight,
+    with its parameters drawn from the seed's ``weather`` stream."""
+    check_weather(name)
+    rng = stream(seed, "weather")
+    names = list(WEATHERS)
+    drawn = names[int(rng.choice(len(names), p=[WEATHERS[n][0] for n in names]))]
+    name = name or drawn
+    rain_sky = "overcast" if rng.uniform() < 0.6 else "partly-cloudy"  # drawn for every state: the same draws follow
+    sky = WEATHERS[name][1] or rain_sky
+    elevation = float(rng.uniform(*SUN_ELEVATION_DEG))
+    azimuth = float(rng.uniform(0.0, 360.0))
+    turbidity = float(rng.uniform(5.0, 9.0) if sky == "hazy" else rng.uniform(2.0, 3.5))
+    cover = {"clear": 0.0, "hazy": 0.0, "partly-cloudy": float(rng.uniform(0.3, 0.6)), "overcast": 1.0}[sky]
+    sun = float(rng.uniform(2.5, 4.5)) * {"clear": 1.0, "hazy": 0.7, "partly-cloudy": 1.0, "overcast": 0.08}[sky]
+    sun_angle = float(rng.uniform(15.0, 30.0) if sky == "overcast" else rng.uniform(0.5, 3.0))
+    sky_strength = float(rng.uniform(3.0, 5.0))
+    fog = float(rng.uniform(*FOG_VISIBILITY_M)) if name == "fog" else None
+    wet = float(rng.uniform(0.6, 1.0)) if name == "after-rain" else 0.0
+    return Weather(name, sky, elevation, azimuth, sun, sun_angle, turbidity, sky_strength, cover, fog, wet,
+                   exposure_for(sky, elevation, sun))
+
+
+def exposure_for(sky: str, elevation_deg: float, sun_strength: float) -> float:
+    """Exposure compensation in stops: a camera's automatic exposure, approximated from the
+    horizontal irradiance of the sun (``sun_strength`` x sin(elevation)) next to that of a
+    reference sun of 3.5 at 45 degrees, with the sky's share; at most +2 stops. Overcast skies
+    get +1 stop on top (their light comes from the sky, not the sun)."""
+    direct = sun_strength * math.sin(math.radians(elevation_deg))
+    reference = 3.5 * math.sin(math.radians(45.0))
+    ambient = 0.6 * reference  # the sky's share of a reference scene's light
+    ev = math.log2((reference + ambient) / (direct + ambient))
+    return round(min(max(ev + (1.0 if sky == "overcast" else 0.0), 0.0), 2.0), 6)

@@ -1,0 +1,121 @@
+"""Sky, light and weather per seed (generator/scene/weather.py, generator/blender/sky.py):
+drawn deterministically, recorded in site.json, overridable, varied over seeds; the pixels
+change, the ground truth does not; fog follows Koschmieder's law along each ray."""
+
+import json
+import subprocess
+import sys
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from generator.scene.weather import SUN_ELEVATION_DEG, WEATHERS, choose_weather
+
+
+def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_rest():
+    a, b = choose_weather(12), choose_weather(12)
+    assert a == b and a.name in WEATHERS
+    for name in WEATHERS:
+        w = choose_weather(12, name)
+        assert w.name == name and w.sun_azimuth_deg == a.sun_azimuth_deg  # the same stream, the same draws
+        assert (w.fog_visibility_m is not None) == (name == "fog") and (w.wetness > 0) == (name == "after-rain")
+        assert 0.0 <= w.exposure_ev <= 2.0 and w.sun_strength > 0
+        assert w.fog_extinction_per_m == (0.0 if name != "fog" else pytest.approx(3.912 / w.fog_visibility_m))
+    with pytest.raises(ValueError, match="^unknown weather 'rainy'; choose one of clear, hazy"):
+        choose_weather(12, "rainy")
+
+
+def test_seeds_0_to_99_cover_four_skies_and_the_sun_from_dawn_to_midday():
+    weathers = [choose_weather(seed) for seed in range(100)]
+    skies = Counter(w.sky for w in weathers)
+    assert set(skies) == {"clear", "hazy", "partly-cloudy", "overcast"} and min(skies.values()) >= 10
+    assert len({w.name for w in weathers}) == len(WEATHERS)
+    elevations = np.array([w.sun_elevation_deg for w in weathers])
+    lo, hi = SUN_ELEVATION_DEG
+    assert lo <= elevations.min() < lo + 5 and hi - 5 < elevations.max() <= hi
+
+
+def test_an_unknown_weather_is_one_line_and_exit_2(tmp_path):
+    for module in ("generator", "generator.scene --seed 1"):
+        r = subprocess.run([sys.executable, "-m", *module.split(), "--out", str(tmp_path / "x"), "--weather", "rainy"],
+                           capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+        assert "--weather" in r.stderr and "after-rain" in r.stderr, r.stderr
+
+
+@pytest.fixture(scope="module")
+def renders(tmp_path_factory):
+    """Seed 5's small site under three weathers, one view rendered at 64x48 from each:
+    name -> (site, simulator, render, what the open Blender scene held: its fog and whether
+    the ground's roughness is textured). One Blender file is open at a time: each is read
+    before the next is built."""
+    import bpy
+
+    from generator import Simulator
+    from generator.blender.sky import fog_of_scene
+    from generator.geometry.camera import look_at
+    from generator.scene import build_site
+
+    out = {}
+    for name in ("overcast", "fog", "after-rain"):
+        site = build_site(5, "small", tmp_path_factory.mktemp(name), preview=False, weather=name)
+        sim = Simulator(site.blend, points_density=0.05, seed=5, render_preset="preview")
+        sim.configure_render(resolution=(64, 48))
+        lo, _ = site.plan.spawn_box
+        sim.set_world_from_camera(look_at(np.array([0.0, lo[1], 4.0]), np.array([0.0, 0.0, 2.0])), check_collisions=False)
+        render = sim.render()
+        ground = next(m for o in bpy.context.scene.objects if o.name.startswith("Ground") for m in o.data.materials)
+        held = {"fog": fog_of_scene(bpy.context.scene),
+                "wet": bool(ground.node_tree.nodes["Principled BSDF"].inputs["Roughness"].links)}
+        out[name] = (site, sim, render, held)
+    return out
+
+
+def test_site_json_records_the_weather_and_the_ground_truth_does_not_change(renders):
+    (site_o, sim_o, o, _), (site_f, sim_f, f, _), (site_w, sim_w, w, _) = (
+        renders[n] for n in ("overcast", "fog", "after-rain"))
+    for site, name in ((site_o, "overcast"), (site_f, "fog"), (site_w, "after-rain")):
+        recorded = json.loads((site.blend.parent / "site.json").read_text())
+        assert recorded["weather"]["name"] == name and recorded["params"]["weather"] == name
+        assert recorded["weather"]["sun_elevation_deg"] == site.plan.weather.sun_elevation_deg
+    for other, sim in ((f, sim_f), (w, sim_w)):
+        np.testing.assert_array_equal(other.depth, o.depth)
+        np.testing.assert_array_equal(other.seg, o.seg)
+        np.testing.assert_array_equal(other.instance, o.instance)
+        np.testing.assert_array_equal(sim.point_positions, sim_o.point_positions)
+        assert not np.array_equal(other.rgb, o.rgb)  # what the camera sees does change
+    assert np.isfinite(o.depth).any() and np.isinf(o.depth).any()  # the view holds surfaces and sky
+
+
+def test_fog_mixes_each_pixel_with_the_fog_colour_by_the_transmittance_along_its_ray(renders):
+    (_, _, clear, _), (_, _, fogged, held) = renders["overcast"], renders["fog"]
+    fog = held["fog"]
+    assert renders["overcast"][3]["fog"] is None
+    # the same sky and sun (the fog state draws the overcast state's parameters, then the fog's)
+    # and the same samples: only the fog differs
+    K = fogged.K
+    h, w = fogged.depth.shape
+    u, v = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    ray = np.sqrt(1 + ((u - K[0, 2]) / K[0, 0]) ** 2 + ((v - K[1, 2]) / K[1, 1]) ** 2)
+    distance = fogged.depth * ray  # metres along each pixel's ray
+    t = np.exp(-fog["extinction_per_m"] * distance)
+    expected = t[..., None] * clear.rgb_linear + (1 - t[..., None]) * np.array(fog["colour"])
+    # interior pixels (the distance varies smoothly there: the Mist pass is filtered over a pixel)
+    finite = np.where(np.isfinite(distance), distance, -1e9)
+    same = np.isfinite(distance)
+    for axis in (0, 1):
+        for shift in (1, -1):
+            same &= np.abs(np.roll(finite, shift, axis) - finite) < 0.05 * finite
+    assert same.sum() > 200
+    err = np.abs(fogged.rgb_linear - expected)[same]
+    assert np.median(err) < 2e-3 and np.quantile(err, 0.95) < 0.02, (np.median(err), np.quantile(err, 0.95))
+    sky = np.isinf(fogged.depth)
+    np.testing.assert_allclose(fogged.rgb_linear[sky], np.broadcast_to(fog["colour"], fogged.rgb_linear[sky].shape),
+                               rtol=1e-3)  # the sky is infinitely far: all fog
+    assert (t[same] < 0.999).all() and (t[same] > 0.05).any()  # the test sees fog, and through it
+
+
+def test_wet_ground_has_textured_roughness_and_dry_ground_has_none(renders):
+    assert renders["after-rain"][3]["wet"] and not renders["overcast"][3]["wet"]
