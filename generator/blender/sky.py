@@ -23,6 +23,7 @@ import math
 import bpy
 import numpy as np
 
+from ..geometry.portable_math import sin, sincos
 from ..scene.weather import Weather
 
 FOG_PROPERTY = "buildee_fog"  # scene property: JSON {"extinction_per_m": float, "colour": [r, g, b]}
@@ -55,8 +56,8 @@ def build_sky(weather: Weather) -> None:
         sky.sky_type = "HOSEK_WILKIE"
         sky.turbidity = weather.turbidity
         sky.ground_albedo = 0.3
-        sky.sun_direction = (math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth),
-                             math.sin(elevation))
+        (se, ce), (sa, ca) = sincos(elevation), sincos(azimuth)
+        sky.sun_direction = (ce * ca, ce * sa, se)
         colour = sky.outputs["Color"]
         if weather.cloud_cover > 0:
             colour = _clouds(nodes, links, colour, weather.cloud_cover)
@@ -64,7 +65,7 @@ def build_sky(weather: Weather) -> None:
     scene.view_settings.exposure = weather.exposure_ev
     if weather.fog_visibility_m is not None:
         # the fog glows as the overcast sky does 40 degrees up (so the sky fades into it)
-        glow = weather.sky_strength * (1 + 2 * math.sin(math.radians(40))) / 3
+        glow = weather.sky_strength * (1 + 2 * float(sin(math.radians(40.0)))) / 3
         scene[FOG_PROPERTY] = json.dumps({"extinction_per_m": weather.fog_extinction_per_m,
                                           "colour": [c * glow for c in OVERCAST_COLOUR]})
     if weather.wetness > 0 and "site_ground" in bpy.data.materials:

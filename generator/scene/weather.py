@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+from ..geometry.portable_math import sin
 from ..geometry.seeding import stream
 
 SUN_ELEVATION_DEG = (5.0, 80.0)
@@ -107,12 +108,19 @@ def choose_weather(seed: int, name: str | None = None) -> Weather:
 
 
 def exposure_for(sky: str, elevation_deg: float, sun_strength: float) -> float:
-    """Exposure compensation in stops: a camera's automatic exposure, approximated from the
-    horizontal irradiance of the sun (``sun_strength`` x sin(elevation)) next to that of a
-    reference sun of 3.5 at 45 degrees, with the sky's share; at most +2 stops. Overcast skies
-    get +1 stop on top (their light comes from the sky, not the sun)."""
-    direct = sun_strength * math.sin(math.radians(elevation_deg))
-    reference = 3.5 * math.sin(math.radians(45.0))
+    """Exposure compensation in stops, in a camera's third-stop steps: its automatic exposure,
+    approximated from the horizontal irradiance of the sun (``sun_strength`` x sin(elevation))
+    next to that of a reference sun of 3.5 at 45 degrees, both with the sky's share: the most
+    k/3 stops with 2^(k/3) <= the ratio (compared as ratio^3 >= 2^k: no logarithm, so the same
+    on every CPU), 0 to +2 stops. Overcast skies get +1 stop on top (their light comes from
+    the sky, not the sun)."""
+    direct = sun_strength * float(sin(math.radians(elevation_deg)))
+    reference = 3.5 * float(sin(math.radians(45.0)))
     ambient = 0.6 * reference  # the sky's share of a reference scene's light
-    ev = math.log2((reference + ambient) / (direct + ambient))
-    return round(min(max(ev + (1.0 if sky == "overcast" else 0.0), 0.0), 2.0), 6)
+    ratio = (reference + ambient) / (direct + ambient)
+    thirds = 3 if sky == "overcast" else 0
+    for k in range(6, 0, -1):
+        if ratio * ratio * ratio >= float(1 << k):
+            thirds += k
+            break
+    return min(thirds, 6) / 3.0
