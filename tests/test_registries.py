@@ -208,13 +208,28 @@ def test_lawnmower_fitting():
 
 def test_spline_fitting():
     """Inside the spawn box between max(floor, 2 m) and min(top, max(floor + 5 m, 0.2 x size)),
-    at 3 m/s; deterministic for a seed, another seed another path."""
-    traj = plan("spline", frames=20)
+    at 4 m/s, looking at a target gliding between two points within 0.15 x size of the box's
+    centre (1.5-6 m up), never within 4 m of it; the path turns and climbs (parallax, not a
+    forward glide); deterministic for a seed, another seed another path."""
+    traj = plan("spline", frames=40)
     p = traj.positions
     assert np.all((p >= [-20.0, -10.0, 2.0]) & (p <= [20.0, 30.0, 8.0]))  # 8 = max(1 + 5, 0.2 x 40)
-    assert np.all(np.linalg.norm(np.diff(p, axis=0), axis=1) <= 0.3 + 1e-9) and traj.params["speed_m_s"] == 3.0
-    assert np.array_equal(plan("spline", frames=20).poses, traj.poses)
-    assert not np.array_equal(plan("spline", seed=1, frames=20).poses, traj.poses)
+    steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    assert np.all(steps <= 0.4 + 1e-9) and traj.params["speed_m_s"] == 4.0
+    a, b = np.array(traj.params["look_at"])
+    for t in (a, b):
+        assert np.all(np.abs(t[:2] - [0.0, 10.0]) <= 0.15 * 40) and 1.5 <= t[2] <= 6.0
+    w = np.linspace(0.0, 1.0, 40)[:, None]  # the target moves in step with the distance flown (equal steps)
+    to_target = a * (1 - w) + b * w - p
+    assert np.all(np.hypot(to_target[:, 0], to_target[:, 1]) >= 4.0)
+    forward = np.array([camera_forward(pose) for pose in traj.poses])
+    np.testing.assert_allclose(forward, to_target / np.linalg.norm(to_target, axis=1, keepdims=True), atol=1e-9)
+    assert np.allclose(traj.poses[:, 2, 0], 0.0)  # no roll: the camera's x axis stays level
+    travel = np.diff(p, axis=0) / steps[:, None]
+    assert np.linalg.norm(p[-1] - p[0]) < 0.95 * steps.sum()  # it turns
+    assert np.median(np.degrees(np.arccos(np.clip((travel * forward[:-1]).sum(1), -1, 1)))) > 20  # not forward only
+    assert np.array_equal(plan("spline", frames=40).poses, traj.poses)
+    assert not np.array_equal(plan("spline", seed=1, frames=40).poses, traj.poses)
 
 
 @pytest.mark.parametrize("kind", ["random_walk", "modified_random_walk"])
