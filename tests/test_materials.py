@@ -11,7 +11,7 @@ import pytest
 import scenes
 from generator import Simulator
 from generator.scene.kinds import all_materials
-from generator.scene.materials import PATTERN_KINDS, Pattern
+from generator.scene.materials import PATTERN_KINDS, Material, Pattern
 
 PATCH = 8
 
@@ -51,6 +51,22 @@ def patch_std(rgb: np.ndarray, mask: np.ndarray) -> float:
     blocks = grey.reshape(h // PATCH, PATCH, w // PATCH, PATCH)
     whole = on.reshape(h // PATCH, PATCH, w // PATCH, PATCH).all(axis=(1, 3))
     return float(np.median(blocks.std(axis=(1, 3))[whole]))
+
+
+def test_every_material_states_a_lidar_reflectivity():
+    """In [0, 1]; declared where the colour misleads (glass, rubber, bare metal, retroreflective
+    hi-vis), else 0.05 + 0.9 x the colour's Rec. 709 luminance."""
+    materials = all_materials()
+    for m in materials.values():
+        assert 0.0 <= m.lidar_reflectivity <= 1.0, m.name
+        if m.reflectivity is None:
+            r, g, b = m.colour
+            assert m.lidar_reflectivity == pytest.approx(0.05 + 0.9 * (0.2126 * r + 0.7152 * g + 0.0722 * b))
+    assert materials["glass"].lidar_reflectivity < 0.05 < materials["concrete"].lidar_reflectivity
+    assert materials["reflective_white"].lidar_reflectivity == 1.0 and materials["hivis"].lidar_reflectivity >= 0.9
+    assert materials["default"].lidar_reflectivity == pytest.approx(0.5)  # mid grey
+    with pytest.raises(ValueError, match=r"^material 'x': reflectivity must be in \[0, 1\], got 1.5$"):
+        Material("x", (0.5, 0.5, 0.5), 0.5, reflectivity=1.5)
 
 
 def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alone(tmp_path):

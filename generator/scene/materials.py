@@ -43,7 +43,10 @@ class Material:
     """A named surface: base ``colour`` (linear RGB, 0-1), ``roughness`` and ``metallic``
     (Principled BSDF, 0-1), an optional :class:`Pattern` and further ``layers`` applied over
     it in order (coarse to fine), and, where the site draws them per seed instead (the
-    paper's ground), ``roughness_range`` and ``specular_range``."""
+    paper's ground), ``roughness_range`` and ``specular_range``; ``reflectivity``: the
+    surface's diffuse reflectivity for a near-infrared (905 nm) laser, in [0, 1], where it is
+    known to differ from what its colour suggests (None: :attr:`lidar_reflectivity` derives it
+    from the colour)."""
 
     name: str
     colour: tuple[float, float, float]
@@ -53,6 +56,22 @@ class Material:
     roughness_range: tuple[float, float] | None = None
     specular_range: tuple[float, float] | None = None
     layers: tuple[Pattern, ...] = ()
+    reflectivity: float | None = None
+
+    def __post_init__(self):
+        if self.reflectivity is not None and not 0.0 <= self.reflectivity <= 1.0:
+            raise ValueError(f"material {self.name!r}: reflectivity must be in [0, 1], got {self.reflectivity!r}")
+
+    @property
+    def lidar_reflectivity(self) -> float:
+        """Diffuse reflectivity at 905 nm in [0, 1] (for a LiDAR's intensity): ``reflectivity``
+        where declared, else 0.05 + 0.9 x the base colour's relative luminance (Rec. 709
+        weights of the linear colour): paints, soil, wood and concrete reflect the near infrared
+        about as they reflect visible light, to a first approximation."""
+        if self.reflectivity is not None:
+            return self.reflectivity
+        r, g, b = self.colour
+        return 0.05 + 0.9 * (0.2126 * r + 0.7152 * g + 0.0722 * b)
 
     def patterns(self) -> tuple[Pattern, ...]:
         """Every texture layer, the first ``pattern`` first."""
@@ -71,12 +90,13 @@ SHARED: tuple[Material, ...] = (
     Material("concrete", (0.45, 0.44, 0.41), 0.85, 0.0, Pattern(3.0, (0.33, 0.32, 0.3), 0.5), layers=CONCRETE_LAYERS),
     Material("brick", (0.42, 0.12, 0.06), 0.85, 0.0, Pattern(10.0, (0.3, 0.08, 0.05), 0.5)),
     Material("rebar", (0.25, 0.12, 0.06), 0.7, 0.6, Pattern(20.0, (0.4, 0.18, 0.07), 0.6)),
-    Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3)),
+    Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3),
+             reflectivity=0.45),  # bare metal: mostly specular, little comes back off-axis
     Material("steel_painted", (0.2, 0.2, 0.21), 0.5, 0.3),
     Material("steel_dark", (0.05, 0.05, 0.05), 0.6, 0.4, Pattern(5.0, (0.12, 0.1, 0.08), 0.4)),
     Material("wood", (0.45, 0.3, 0.15), 0.75, 0.0, Pattern(18.0, (0.32, 0.2, 0.1), 0.5)),
     Material("wood_dark", (0.25, 0.16, 0.08), 0.8, 0.0, Pattern(18.0, (0.15, 0.1, 0.05), 0.5)),
-    Material("glass", (0.02, 0.03, 0.04), 0.05),
-    Material("rubber", (0.02, 0.02, 0.02), 0.9),
+    Material("glass", (0.02, 0.03, 0.04), 0.05, reflectivity=0.02),  # transmits and mirrors: next to no diffuse return
+    Material("rubber", (0.02, 0.02, 0.02), 0.9, reflectivity=0.05),  # carbon black absorbs the near infrared
     Material("plastic_white", (0.8, 0.8, 0.8), 0.4),
 )

@@ -49,6 +49,6 @@ register(AssetKind(
 ))
 register(AssetKind(
     name="TrafficCone", classes=("TrafficCone",), build=traffic_cones, place=Mix(weight=2), order=59,
-    materials=(Material("plastic_orange", (0.9, 0.2, 0.01), 0.4), Material("reflective_white", (0.9, 0.9, 0.9), 0.25)),
+    materials=(Material("plastic_orange", (0.9, 0.2, 0.01), 0.4), Material("reflective_white", (0.9, 0.9, 0.9), 0.25, reflectivity=1.0)),
     shared_streams=True,
 ))

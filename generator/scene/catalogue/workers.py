@@ -38,7 +38,7 @@ def workers(rng: np.random.Generator) -> Asset:
 
 register(AssetKind(
     name="Worker", classes=("Worker",), build=workers, place=Mix(weight=2.5), order=63,
-    materials=(Material("hivis", (0.9, 0.7, 0.0), 0.6), Material("work_trousers", (0.05, 0.06, 0.1), 0.9),
+    materials=(Material("hivis", (0.9, 0.7, 0.0), 0.6, reflectivity=0.9), Material("work_trousers", (0.05, 0.06, 0.1), 0.9),
                Material("skin", (0.55, 0.35, 0.25), 0.6), Material("hard_hat", (0.9, 0.9, 0.85), 0.35)),
     stage=Relocates(P_MOVE), shared_streams=True,
 ))
