@@ -111,7 +111,7 @@ def _cloud_noise(nodes, links, scale: float):
     noise = nodes.new("ShaderNodeTexNoise")
     noise.noise_dimensions = "2D"
     noise.inputs["Scale"].default_value = scale
-    noise.inputs["Detail"].default_value = 8.0
+    noise.inputs["Detail"].default_value = 4.0
     noise.inputs["Roughness"].default_value = 0.55
     links.new(plane.outputs["Vector"], noise.inputs["Vector"])
     return noise.outputs["Fac"], z
