@@ -158,16 +158,9 @@ class Renderer:
         tree = bpy.data.node_groups.new("buildee-outputs", "CompositorNodeTree")
         scene.compositing_node_group = tree
         layers = tree.nodes.new("CompositorNodeRLayers")
-        out = tree.nodes.new("CompositorNodeOutputFile")
-        out.directory = self.tmpdir + os.sep
-        out.file_name = "display"
-        out.format.media_type = "IMAGE"
-        out.format.file_format = "TIFF"
-        out.format.color_depth = "16"
-        out.format.color_mode = "RGB"
+        out = self._file_output(tree, "display", "TIFF", "16")
         out.format.tiff_codec = "NONE"
         out.save_as_render = True  # Blender's view transform, as in its own PNG output
-        out.file_output_items.new("RGBA", "Image")
         image = layers.outputs["Image"]
         self.fog = fog_of_scene(scene)
         if self.fog is not None:
@@ -196,17 +189,23 @@ class Renderer:
         tree.links.new(transmittance.outputs[0], mix.inputs["Factor"])
         mix.inputs["A"].default_value = (*self.fog["colour"], 1.0)
         tree.links.new(image, mix.inputs["B"])
-        linear = tree.nodes.new("CompositorNodeOutputFile")
-        linear.directory = self.tmpdir + os.sep
-        linear.file_name = "fogged"
-        linear.format.media_type = "IMAGE"
-        linear.format.file_format = "OPEN_EXR"
-        linear.format.color_depth = "32"
+        linear = self._file_output(tree, "fogged", "OPEN_EXR", "32")
         linear.format.exr_codec = "NONE"
-        linear.format.color_mode = "RGB"
-        linear.file_output_items.new("RGBA", "Image")
         tree.links.new(mix.outputs["Result"], linear.inputs[0])
         return mix.outputs["Result"]
+
+    def _file_output(self, tree, name: str, file_format: str, depth: str):
+        """A compositor File Output node writing one RGB image ``name`` of ``file_format`` and
+        ``depth`` bits into the private folder."""
+        node = tree.nodes.new("CompositorNodeOutputFile")
+        node.directory = self.tmpdir + os.sep
+        node.file_name = name
+        node.format.media_type = "IMAGE"
+        node.format.file_format = file_format
+        node.format.color_depth = depth
+        node.format.color_mode = "RGB"
+        node.file_output_items.new("RGBA", "Image")
+        return node
 
     def render(self, passes: Iterable[BlenderPass], alongside: Callable[[], object] | None = None,
                off: Iterable[BlenderPass] = ()) -> dict[str, object]:
