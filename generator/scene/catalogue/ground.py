@@ -23,12 +23,13 @@ def ground_part(size: float) -> Part:
 register(AssetKind(
     name="Ground", classes=("Ground",), build=ground_part, order=0,
     # compacted soil with texture at every scale a camera sees: damp and dry areas tens of
-    # metres across, patches of a metre, clods of decimetres, gravel of centimetres; roughness and
-    # specular drawn per seed as the paper's ground
+    # metres across, light patches and a dark mottle of a metre or two, clods of decimetres,
+    # gravel of centimetres; roughness and specular drawn per seed as the paper's ground
     materials=(Material("ground", (0.23, 0.18, 0.12), 0.9, 0.0, Pattern(0.04, (0.12, 0.1, 0.07), 0.6, detail=4.0),
                         roughness_range=(0.5, 1.0), specular_range=(0.1, 0.7),
-                        layers=(Pattern(0.5, (0.38, 0.33, 0.26), 0.7, detail=4.0),
-                                Pattern(1.5, (0.12, 0.09, 0.06), 0.7, kind="voronoi"),
+                        layers=(Pattern(0.5, (0.5, 0.44, 0.35), 0.7, detail=4.0),
+                                Pattern(1.5, (0.08, 0.06, 0.04), 0.85, kind="voronoi"),
+                                Pattern(0.9, (0.1, 0.08, 0.05), 0.6, detail=3.0),
                                 Pattern(5.0, (0.13, 0.1, 0.08), 0.6, kind="voronoi"),
                                 Pattern(25.0, (0.42, 0.37, 0.3), 0.5, kind="voronoi"))),),
     shared_streams=True,
