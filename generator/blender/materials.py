@@ -25,9 +25,14 @@ def _jitter(rgb, rng: np.random.Generator, hue=0.02, sat=0.1, val=0.12):
     return colorsys.hsv_to_rgb(h, s, v)
 
 
+def material_name(key: str) -> str:
+    """The Blender name of the site material ``key``."""
+    return f"site_{key}"
+
+
 def make_material(key: str, seed: int):
     """The material ``key`` of this site's seed (created once per file)."""
-    name = f"site_{key}"
+    name = material_name(key)
     if name in bpy.data.materials:
         return bpy.data.materials[name]
     recipes = all_materials()  # read now: a kind registered after this module's import has its materials

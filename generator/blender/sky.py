@@ -25,6 +25,7 @@ import numpy as np
 
 from ..geometry.portable_math import sin, sincos
 from ..scene.weather import Weather
+from .materials import material_name
 
 FOG_PROPERTY = "buildee_fog"  # scene property: JSON {"extinction_per_m": float, "colour": [r, g, b]}
 MIST_DEPTH = 100_000.0  # metres: the Mist pass's linear range (the sky reads as this far)
@@ -68,8 +69,9 @@ def build_sky(weather: Weather) -> None:
         glow = weather.sky_strength * (1 + 2 * float(sin(math.radians(40.0)))) / 3
         scene[FOG_PROPERTY] = json.dumps({"extinction_per_m": weather.fog_extinction_per_m,
                                           "colour": [c * glow for c in OVERCAST_COLOUR]})
-    if weather.wetness > 0 and "site_ground" in bpy.data.materials:
-        wet_ground(bpy.data.materials["site_ground"], weather.wetness)
+    ground = material_name("ground")
+    if weather.wetness > 0 and ground in bpy.data.materials:
+        wet_ground(bpy.data.materials[ground], weather.wetness)
 
 
 def fog_of_scene(scene) -> dict | None:
