@@ -16,7 +16,7 @@ import pytest
 from generator.scene import catalogue, plan_site, site_params
 from generator.scene.assets import Asset, Part
 from generator.scene.catalogue.fence import fence_part
-from generator.scene.catalogue.ground import ground_part
+from generator.scene.catalogue.ground import ASPHALT, ROADS, SURFACES, GroundSurface, ground_part
 from generator.scene.kinds import AssetKind, all_kinds, all_materials, kind, register, unregister
 from generator.scene.materials import Material
 from generator.scene.meshes import MeshBuilder
@@ -95,7 +95,9 @@ def test_presets_and_materials_come_from_the_entries():
     assert materials["sand"] is kind("SandPile").materials[0]
     assert {m.name for k in all_kinds() for m in k.materials} <= set(materials)
     # every material a site's meshes name is declared, and every declared one is used
-    used = {"default"} | set(ground_part(50.0).mesh.materials) | set(fence_part(np.zeros(2), np.ones(2)).mesh.materials)
+    used = {"default"} | set(fence_part(np.zeros(2), np.ones(2)).mesh.materials)
+    used |= {m for surface in SURFACES for road in ROADS  # every surface, road and tracks; asphalt lends its colour
+             for m in ground_part(50.0, GroundSurface(surface, road), 18.5).mesh.materials} | {ASPHALT.name}
     for seed in (0, 1, 2, 3):
         plan = plan_site(seed, site_params("medium", frames=20))
         for p in plan.placed:

@@ -10,6 +10,7 @@ import pytest
 
 import scenes
 from generator import Simulator
+from generator.scene.catalogue.ground import SURFACES, surface_material
 from generator.scene.kinds import all_materials
 from generator.scene.materials import PATTERN_KINDS, Material, Pattern
 
@@ -18,9 +19,11 @@ PATCH = 8
 
 def test_every_material_declares_valid_layers():
     materials = all_materials()
-    assert len(materials["ground"].patterns()) >= 4  # texture from tens of metres to centimetres
-    scales = sorted(p.scale for p in materials["ground"].patterns())
-    assert scales[0] <= 0.1 and scales[-1] >= 20  # features per metre
+    for surface in SURFACES:
+        ground = materials[surface_material(surface)]
+        assert len(ground.patterns()) >= 4 and ground.bump > 0  # texture from tens of metres to centimetres
+        scales = sorted(p.scale for p in ground.patterns())
+        assert scales[0] <= 0.1 and scales[-1] >= 20  # features per metre
     for name, m in materials.items():
         for p in m.patterns():
             assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1, name
@@ -70,8 +73,10 @@ def test_every_material_states_a_lidar_reflectivity():
 
 
 def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alone(tmp_path):
+    """Its colour layers and its bump map change the pixels; depth, labels, normals (from the
+    geometry, not the bumped shading normal) and points stay."""
     views = {}
-    for material in (None, "ground"):
+    for material in (None, "ground-compacted-soil"):
         sim = Simulator(ground_view(tmp_path / f"{material}.blend", material), points_density=0.5,
                         segmentation_sensitivity=0.0)
         sim.configure_render(engine="CYCLES", samples=16, denoise=False)
@@ -80,7 +85,7 @@ def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alon
         out = sim.render_outputs(names, pose[None], np.zeros((1, 0, 4, 4)), 0)
         views[material] = {k: np.asarray(out[k]) for k in names}
         views[material]["points"] = sim.compute_point_cloud(update_mask=False)[0]
-    plain, textured = views[None], views["ground"]
+    plain, textured = views[None], views["ground-compacted-soil"]
     for key in ("depth", "label", "normal", "points"):
         np.testing.assert_array_equal(plain[key], textured[key], err_msg=key)
     ground = np.isfinite(plain["depth"]) & (plain["label"] >= 0)

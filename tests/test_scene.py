@@ -145,8 +145,11 @@ def test_surface_points_lie_on_surfaces_cameras_can_reach(small_site):
     sim = Simulator(small_site.blend, points_density=5.0)
     parts = sim.scene_parts()
     ground = [p for p in parts if p.label == "Ground"]
-    assert len(ground) == 1 and not ground[0].closed and len(ground[0].faces) == 2
+    assert len(ground) == 1 and not ground[0].closed and len(ground[0].faces) > 2  # cut where its material changes
     assert np.all(ground[0].vertices[:, 2] == 0.0) and ground_height(parts) == 0.0
+    v, f = ground[0].vertices, ground[0].faces
+    up = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])[:, 2]
+    assert np.all(up > 0)  # every face of the plane faces up
     # the faces the rule drops exist (bottoms of props), and face straight down at z = 0
     dropped: dict[str, int] = {}
     for p in parts:

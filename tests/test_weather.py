@@ -54,7 +54,7 @@ def renders(tmp_path_factory):
     import bpy
 
     from generator import Simulator
-    from generator.blender.sky import fog_of_scene
+    from generator.blender.sky import PUDDLES, fog_of_scene
     from generator.geometry.camera import look_at
     from generator.scene import build_site
 
@@ -68,7 +68,7 @@ def renders(tmp_path_factory):
         render = sim.render()
         ground = next(m for o in bpy.context.scene.objects if o.name.startswith("Ground") for m in o.data.materials)
         held = {"fog": fog_of_scene(bpy.context.scene),
-                "wet": bool(ground.node_tree.nodes["Principled BSDF"].inputs["Roughness"].links)}
+                "wet": any(n.label == PUDDLES for n in ground.node_tree.nodes)}
         out[name] = (site, sim, render, held)
     return out
 
@@ -117,5 +117,5 @@ def test_fog_mixes_each_pixel_with_the_fog_colour_by_the_transmittance_along_its
     assert (t[same] < 0.999).all() and (t[same] > 0.05).any()  # the test sees fog, and through it
 
 
-def test_wet_ground_has_textured_roughness_and_dry_ground_has_none(renders):
+def test_wet_ground_has_puddles_and_dry_ground_has_none(renders):
     assert renders["after-rain"][3]["wet"] and not renders["overcast"][3]["wet"]

@@ -7,13 +7,15 @@ module turns a declaration into a Principled BSDF node tree (:func:`make_materia
 from __future__ import annotations
 
 import colorsys
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from ..geometry.seeding import stream
 from ..scene.kinds import all_materials
-from ..scene.materials import DEFAULT
+from ..scene.materials import DEFAULT, Material
+from .nodes import Graph
 
 
 
@@ -35,39 +37,76 @@ def make_material(key: str, seed: int):
     name = material_name(key)
     if name in bpy.data.materials:
         return bpy.data.materials[name]
-    recipes = all_materials()  # read now: a kind registered after this module's import has its materials
-    recipe = recipes.get(key, recipes[DEFAULT])
-    rng = stream(seed, "material", key)
     mat = bpy.data.materials.new(name)
     if mat.node_tree is None:
         mat.use_nodes = True
     nodes = mat.node_tree.nodes
     bsdf = nodes.get("Principled BSDF") or nodes.new("ShaderNodeBsdfPrincipled")
-    colour = _jitter(recipe.colour, rng)
-    roughness = float(np.clip(recipe.roughness + rng.uniform(-0.1, 0.1), 0.02, 1.0))
-    bsdf.inputs["Roughness"].default_value = roughness
-    bsdf.inputs["Metallic"].default_value = recipe.metallic
-    if recipe.roughness_range is not None:  # drawn per seed (the paper's ground)
-        bsdf.inputs["Roughness"].default_value = float(rng.uniform(*recipe.roughness_range))
-    if recipe.specular_range is not None:
-        bsdf.inputs["Specular IOR Level"].default_value = float(rng.uniform(*recipe.specular_range))
-    layers = recipe.patterns()
-    if not layers:
-        bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+    surface = drawn_surface(mat.node_tree, key, seed)
+    bsdf.inputs["Roughness"].default_value = surface.roughness
+    bsdf.inputs["Metallic"].default_value = surface.recipe.metallic
+    if surface.specular is not None:
+        bsdf.inputs["Specular IOR Level"].default_value = surface.specular
+    if isinstance(surface.colour, tuple):
+        bsdf.inputs["Base Color"].default_value = (*surface.colour, 1.0)
     else:
-        _add_layers(mat, bsdf, layers, colour, rng)
-    mat.diffuse_color = (*colour, 1.0)  # viewport / Workbench colour
+        mat.node_tree.links.new(surface.colour, bsdf.inputs["Base Color"])
+    if surface.height is not None:
+        bump = nodes.new("ShaderNodeBump")
+        bump.inputs["Distance"].default_value = 1.0  # the height is in metres already
+        mat.node_tree.links.new(surface.height, bump.inputs["Height"])
+        mat.node_tree.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    mat.diffuse_color = (*surface.base, 1.0)  # viewport / Workbench colour
     return mat
 
 
-def _add_layers(mat, bsdf, layers, colour, rng: np.random.Generator) -> None:
-    """Each layer's texture (object coordinates: features per metre) mixes the colour so far
-    towards the layer's (jittered) colour."""
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+@dataclass(frozen=True)
+class DrawnSurface:
+    """A material's look as drawn for one seed: its ``recipe``, ``base`` colour (jittered,
+    linear RGB), ``colour`` (the base, or the output socket of its texture layers in the node
+    tree it was drawn into), ``roughness`` and ``specular`` (None: Blender's default), and
+    ``height`` (metres: the output socket of its bump map's height; None without one)."""
+
+    recipe: Material
+    base: tuple[float, float, float]
+    colour: object
+    roughness: float
+    specular: float | None
+    height: object = None
+
+
+def drawn_surface(tree, key: str, seed: int) -> DrawnSurface:
+    """Material ``key`` of the site of ``seed`` drawn into the node tree ``tree``: its colour
+    and roughness jittered from the stream of (seed, "material", key), its texture layers as
+    nodes of ``tree``."""
+    recipes = all_materials()  # read now: a kind registered after this module's import has its materials
+    recipe = recipes.get(key, recipes[DEFAULT])
+    rng = stream(seed, "material", key)
+    colour = _jitter(recipe.colour, rng)
+    roughness = float(np.clip(recipe.roughness + rng.uniform(-0.1, 0.1), 0.02, 1.0))
+    if recipe.roughness_range is not None:  # drawn per seed (the paper's ground)
+        roughness = float(rng.uniform(*recipe.roughness_range))
+    specular = float(rng.uniform(*recipe.specular_range)) if recipe.specular_range is not None else None
+    layers = recipe.patterns()
+    if not layers:
+        return DrawnSurface(recipe, colour, colour, roughness, specular)
+    textured = _add_layers(tree, layers, colour, rng, recipe.planar)
+    height = None
+    if recipe.bump > 0:  # a texture of its own: Cycles evaluates what feeds a bump three times, so it is one cheap noise
+        g = Graph(tree.nodes, tree.links)
+        vector = g.object_coordinates()
+        height = g.math("MULTIPLY", g.noise(vector, recipe.bump_scale, 2.0, planar=recipe.planar), recipe.bump)
+    return DrawnSurface(recipe, colour, textured, roughness, specular, height)
+
+
+def _add_layers(tree, layers, colour, rng: np.random.Generator, planar: bool = False):
+    """Each layer's texture (object coordinates: features per metre; in 2D when ``planar``)
+    mixes the colour so far towards the layer's (jittered) colour; the last mix's output socket."""
+    nodes, links = tree.nodes, tree.links
     coords = nodes.new("ShaderNodeTexCoord")
     current = None  # the colour so far: an output socket, or None for the base colour
     for layer in layers:
-        fac = _layer_factor(nodes, links, coords.outputs["Object"], layer, rng)
+        fac = _layer_factor(nodes, links, coords.outputs["Object"], layer, rng, planar)
         mix = nodes.new("ShaderNodeMix")
         mix.data_type = "RGBA"
         weight = nodes.new("ShaderNodeMath")
@@ -81,15 +120,16 @@ def _add_layers(mat, bsdf, layers, colour, rng: np.random.Generator) -> None:
             links.new(current, mix.inputs["A"])
         mix.inputs["B"].default_value = (*_jitter(layer.colour, rng), 1.0)
         current = mix.outputs["Result"]
-    links.new(current, bsdf.inputs["Base Color"])
+    return current
 
 
-def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator):
+def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator, planar: bool = False):
     """The layer's texture at ``vector`` as a factor in [0, 1] (an output socket)."""
     scale = layer.scale * float(rng.uniform(0.8, 1.25))
     ramp = nodes.new("ShaderNodeMapRange")
     if layer.kind == "voronoi":  # a stone at each cell: 1 at its centre, 0 at its edge, times its own shade
         tex = nodes.new("ShaderNodeTexVoronoi")
+        tex.voronoi_dimensions = "2D" if planar else "3D"
         tex.inputs["Scale"].default_value = scale
         links.new(vector, tex.inputs["Vector"])
         ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.45, 0.1
@@ -100,6 +140,7 @@ def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator):
         links.new(tex.outputs["Color"], shade.inputs[1])
         return shade.outputs[0]
     tex = nodes.new("ShaderNodeTexNoise")
+    tex.noise_dimensions = "2D" if planar else "3D"
     tex.inputs["Scale"].default_value = scale
     tex.inputs["Detail"].default_value = layer.detail
     links.new(vector, tex.inputs["Vector"])

@@ -25,15 +25,18 @@ import numpy as np
 
 from ..geometry.portable_math import sin, sincos
 from ..scene.weather import Weather
-from .materials import material_name
+from .nodes import Graph
 
 FOG_PROPERTY = "buildee_fog"  # scene property: JSON {"extinction_per_m": float, "colour": [r, g, b]}
 MIST_DEPTH = 100_000.0  # metres: the Mist pass's linear range (the sky reads as this far)
+PUDDLES = "puddles"  # the label of wet ground's puddle mask node
 OVERCAST_COLOUR = (0.105, 0.11, 0.12)  # the overcast zenith's radiance before the sky strength (linear RGB)
 
 
-def build_sky(weather: Weather) -> None:
-    """Sun lamp, world shader, exposure and fog of ``weather`` in the open scene."""
+def build_sky(weather: Weather, ground=()) -> None:
+    """Sun lamp, world shader, exposure and fog of ``weather`` in the open scene; wet ground
+    on the materials ``ground`` (the site's ground's: surface, road, tracks; each once) when
+    the weather is wet."""
     scene = bpy.context.scene
     elevation, azimuth = math.radians(weather.sun_elevation_deg), math.radians(weather.sun_azimuth_deg)
     sun_data = bpy.data.lights.new("Sun", "SUN")
@@ -69,9 +72,9 @@ def build_sky(weather: Weather) -> None:
         glow = weather.sky_strength * (1 + 2 * float(sin(math.radians(40.0)))) / 3
         scene[FOG_PROPERTY] = json.dumps({"extinction_per_m": weather.fog_extinction_per_m,
                                           "colour": [c * glow for c in OVERCAST_COLOUR]})
-    ground = material_name("ground")
-    if weather.wetness > 0 and ground in bpy.data.materials:
-        wet_ground(bpy.data.materials[ground], weather.wetness)
+    if weather.wetness > 0:
+        for material in dict.fromkeys(ground):
+            wet_ground(material, weather.wetness)
 
 
 def fog_of_scene(scene) -> dict | None:
@@ -82,16 +85,7 @@ def fog_of_scene(scene) -> dict | None:
 
 def _math(nodes, links, operation: str, a, b=None):
     """A Math node ``operation`` of ``a`` and ``b`` (sockets or numbers); its output socket."""
-    node = nodes.new("ShaderNodeMath")
-    node.operation = operation
-    for socket, value in zip(node.inputs, (a, b)):
-        if value is None:
-            continue
-        if isinstance(value, (int, float)):
-            socket.default_value = float(value)
-        else:
-            links.new(value, socket)
-    return node.outputs[0]
+    return Graph(nodes, links).math(operation, a, b)
 
 
 def _view_direction(nodes, links):
@@ -174,6 +168,7 @@ def wet_ground(material, wetness: float) -> None:
     noise.inputs["Detail"].default_value = 4.0
     links.new(coords.outputs["Object"], noise.inputs["Vector"])
     puddle = nodes.new("ShaderNodeMapRange")
+    puddle.label = PUDDLES
     start = 0.62 - 0.1 * wetness
     puddle.inputs["From Min"].default_value, puddle.inputs["From Max"].default_value = start, start + 0.02
     links.new(noise.outputs["Fac"], puddle.inputs["Value"])

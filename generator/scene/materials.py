@@ -12,7 +12,7 @@ texture, a LiDAR reflectivity) is one new field of :class:`Material`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,11 @@ class Material:
     """A named surface: base ``colour`` (linear RGB, 0-1), ``roughness`` and ``metallic``
     (Principled BSDF, 0-1), an optional :class:`Pattern` and further ``layers`` applied over
     it in order (coarse to fine), and, where the site draws them per seed instead (the
-    paper's ground), ``roughness_range`` and ``specular_range``; ``reflectivity``: the
+    paper's ground), ``roughness_range`` and ``specular_range``; ``bump``: the height (metres)
+    of a bump map (relief seen in the shading only, never in the geometry), a fractal noise of
+    ``bump_scale`` features per metre (0: none); ``planar``: the material lies on horizontal
+    planes only (the ground), so its textures are evaluated in 2D, on x and y (cheaper to
+    render, the same look); ``reflectivity``: the
     surface's diffuse reflectivity for a near-infrared (905 nm) laser, in [0, 1], where it is
     known to differ from what its colour suggests (None: :attr:`lidar_reflectivity` derives it
     from the colour)."""
@@ -57,6 +61,9 @@ class Material:
     specular_range: tuple[float, float] | None = None
     layers: tuple[Pattern, ...] = ()
     reflectivity: float | None = None
+    bump: float = 0.0
+    bump_scale: float = 2.0
+    planar: bool = False
 
     def __post_init__(self):
         if self.reflectivity is not None and not 0.0 <= self.reflectivity <= 1.0:
@@ -76,6 +83,18 @@ class Material:
     def patterns(self) -> tuple[Pattern, ...]:
         """Every texture layer, the first ``pattern`` first."""
         return ((self.pattern,) if self.pattern is not None else ()) + self.layers
+
+
+def recoloured(material: Material, name: str, tint, **changes) -> Material:
+    """``material`` named ``name`` with its base colour and every layer's colour multiplied by
+    ``tint`` (RGB, clipped to 1) and any other fields changed by ``changes``: the same texture
+    in another colour (a road of the site's soil in asphalt's colour, its tyre tracks darker)."""
+    def scaled(c):
+        return tuple(min(1.0, x * k) for x, k in zip(c, tint))
+
+    pattern = None if material.pattern is None else replace(material.pattern, colour=scaled(material.pattern.colour))
+    return replace(material, name=name, colour=scaled(material.colour), pattern=pattern,
+                   layers=tuple(replace(p, colour=scaled(p.colour)) for p in material.layers), **changes)
 
 
 # cast concrete, over its base pattern: stains and colour variation of half a metre to a few

@@ -20,7 +20,7 @@ from ..geometry.portable_math import sincos
 from ..geometry.seeding import stream
 from .assets import Footprint
 from .catalogue.fence import fence_part  # noqa: F401  (generator.blender.build builds the fence from here)
-from .catalogue.ground import GROUND_MARGIN, ground_part  # noqa: F401  (and the ground)
+from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part  # noqa: F401  (and the ground)
 from .kinds import all_kinds, kind as kind_named
 from .placement import PlacedAsset, Placer, SiteArea  # noqa: F401  (PlacedAsset: the plan's entries)
 from .planning import SiteState
@@ -29,6 +29,7 @@ from .weather import Weather, check_weather, choose_weather
 
 LAYOUTS = ("grid", "scattered", "clustered")
 GATE = (-4.0, 4.0)  # x range of the gate in the south fence, metres
+ROAD_CORNER_M = 8.0  # corner radius of the road loop's centre line (at most half its half-side)
 MAX_COUNT = 1000  # most assets of one kind a site may ask for
 
 
@@ -42,7 +43,8 @@ class SiteParams:
     animation length and rate. buildings, trucks, excavators: (fewest, most) of each; counts:
     the same for the catalogue's other counted kinds, ((kind, (fewest, most)), ...) sorted by
     kind (a kind absent has none; the presets take them from the kinds' entries); weather: a
-    state of generator/scene/weather.py (None: drawn per seed).
+    state of generator/scene/weather.py, ground: a surface of generator/scene/catalogue/ground.py
+    (None: drawn per seed).
     """
 
     size: float = 100.0
@@ -58,6 +60,7 @@ class SiteParams:
     fps: float = 10.0
     counts: tuple[tuple[str, tuple[int, int]], ...] = ()
     weather: str | None = None
+    ground: str | None = None
 
     @property
     def min_size(self) -> float:
@@ -78,6 +81,7 @@ class SiteParams:
         check_integer("animation length", self.frames, 2, valid="an integer >= 2 frames")
         check_number("fps", self.fps, 0, open_low=True)
         check_weather(self.weather)
+        check_surface(self.ground)
         counts = checked_counts(self.counts)
         return self if counts == self.counts else replace(self, counts=counts)
 
@@ -152,6 +156,7 @@ class SitePlan:
     reserved: list[Footprint] = field(default_factory=list)  # ground kept free of assets (roads, gate access)
     area: SiteArea | None = None  # where props go (inside the road loop, the band along the fence)
     weather: Weather | None = None  # sky, sun and weather (generator/scene/weather.py)
+    ground: GroundSurface | None = None  # what the ground is made of (generator/scene/catalogue/ground.py)
 
     def summary(self) -> dict:
         """site.json's plan: seed, parameters, assets per kind, skipped ones, hook height; a
@@ -161,7 +166,7 @@ class SitePlan:
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
         params = asdict(self.params)
-        for name in ("counts", "weather"):
+        for name in ("counts", "weather", "ground"):
             if not params[name]:
                 del params[name]  # the first release's sites have none: their site.json stays as it was
         added = {name: kind_named(name).module for name, (_, most) in self.params.counts if most > 0}
@@ -169,7 +174,7 @@ class SitePlan:
                   if not kind_named(p.asset.kind).shared_streams}
         timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return ({"seed": self.seed, "params": params, "assets": kinds, "skipped": self.skipped,
-                 "hook_height_m": self.hook_height, "weather": self.weather.summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
+                 "hook_height_m": self.hook_height, "weather": self.weather.summary(), "ground": self.ground.summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
 
 
 def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:
@@ -197,10 +202,11 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
 def lay_out(seed: int, params: SiteParams, stage: int, stages: int) -> SiteState:
     """The empty site: the road loop, the ground kept free (road, gate access), where props
     go, and the planning state the kinds place themselves on."""
-    plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather))
+    plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather),
+                    ground=choose_ground(seed, params.ground))
     half = params.size / 2
     road_half = half - params.road_inset
-    plan.road = road_loop(road_half, 8.0)
+    plan.road = road_loop(road_half, ROAD_CORNER_M)
     w = plan.road_width
     reserved = [Footprint((0.0, s * road_half), (2 * road_half + w, w)) for s in (-1, 1)]
     reserved += [Footprint((s * road_half, 0.0), (w, 2 * road_half + w)) for s in (-1, 1)]
@@ -228,6 +234,12 @@ def set_camera_volume(plan: SitePlan, site: SiteState) -> None:
     top = max(plan.hook_height - 3.0, site.tallest + 6.0)
     plan.spawn_box = ((-half + 2.0, -half + 2.0, 1.5), (half - 2.0, half - 2.0, top))
     plan.camera = ((-half * 0.55, -half * 0.95, min(20.0, top)), (0.0, 0.0, 2.0))
+
+
+def site_ground(plan: SitePlan):
+    """The ground's part of ``plan``: its surface, road and verge (generator/scene/ground_layout.py)."""
+    road_half = plan.params.size / 2 - plan.params.road_inset
+    return ground_part(plan.params.size, plan.ground, road_half, min(ROAD_CORNER_M, road_half * 0.5), plan.road_width, GATE)
 
 
 def road_loop(half_inner: float, radius: float) -> np.ndarray:
