@@ -22,6 +22,7 @@ from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_l
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
+from .scene.catalogue.ground import SURFACES
 from .scene.weather import WEATHERS
 from exporters.modalities import MODALITIES
 from exporters.sinks import export_options
@@ -88,6 +89,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--weather", choices=WEATHERS, default=None,
                    help="sky and weather of every seed: " + ", ".join(WEATHERS) + " (default: drawn per seed; "
                         "docs/scenes.md)")
+    p.add_argument("--ground", choices=SURFACES, default=None,
+                   help="the ground's surface on every seed: " + ", ".join(SURFACES) + " (default: drawn per seed; "
+                        "docs/scenes.md)")
     add_executor_arguments(p)  # --executor and each executor's own options (generator/batch/executors/)
     p.add_argument("--shard", type=_shard, default=(0, 1),
                    help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
@@ -116,7 +120,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
-                            phases=args.phases, weather=args.weather, exports={o.dest: getattr(args, o.dest) for o in export_options()})
+                            phases=args.phases, weather=args.weather, ground=args.ground, exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:

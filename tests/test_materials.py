@@ -21,14 +21,14 @@ def test_every_material_declares_valid_layers():
     materials = all_materials()
     for surface in SURFACES:
         ground = materials[surface_material(surface)]
-        assert len(ground.patterns()) >= 4 and ground.bump > 0  # texture from tens of metres to centimetres
+        assert len(ground.patterns()) >= 4 and ground.planar  # texture from tens of metres to centimetres
         scales = sorted(p.scale for p in ground.patterns())
         assert scales[0] <= 0.1 and scales[-1] >= 20  # features per metre
     for name, m in materials.items():
         for p in m.patterns():
             assert p.kind in PATTERN_KINDS and p.scale > 0 and 0 <= p.strength <= 1, name
             assert all(0 <= c <= 1 for c in p.colour), name
-    with pytest.raises(ValueError, match="Pattern kind 'wave' is unknown; choose one of noise, voronoi"):
+    with pytest.raises(ValueError, match="Pattern kind 'wave' is unknown; choose one of noise, voronoi, courses"):
         Pattern(1.0, (0.5, 0.5, 0.5), 0.5, kind="wave")
 
 
@@ -73,8 +73,7 @@ def test_every_material_states_a_lidar_reflectivity():
 
 
 def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alone(tmp_path):
-    """Its colour layers and its bump map change the pixels; depth, labels, normals (from the
-    geometry, not the bumped shading normal) and points stay."""
+    """Its colour layers change the pixels; depth, labels, normals and points stay."""
     views = {}
     for material in (None, "ground-compacted-soil"):
         sim = Simulator(ground_view(tmp_path / f"{material}.blend", material), points_density=0.5,
@@ -94,3 +93,25 @@ def test_the_ground_material_textures_the_image_and_leaves_the_ground_truth_alon
     # 16 samples leave some noise on the plain plane; the texture's contrast is well above it
     assert patch_std(rgb_textured, ground) > 3 * patch_std(rgb_plain, ground) + 0.001, (
         patch_std(rgb_textured, ground), patch_std(rgb_plain, ground))
+
+
+def test_brick_shows_its_mortar_courses_at_their_true_size(tmp_path):
+    """A brick wall 0.95 m in front of the camera: the image rows' brightness repeats once a
+    course (75 mm: 13.3 courses per metre), as many pixels as 0.075 m spans at that distance."""
+    from generator.blender.materials import make_material
+
+    scenes.new_scene(96, 96)
+    wall = scenes.add_box("Wall", (4.0, 0.1, 3.0), (0.0, 1.0, 0.0))
+    wall.data.materials.append(make_material("brick", 5))
+    scenes.add_sun(rotation=(1.2, 0.0, 0.3))
+    scenes.look_along_y((0.0, 0.0, 0.0))
+    sim = Simulator(scenes.save(tmp_path / "wall.blend"), points_density=0.5)
+    sim.configure_render(engine="CYCLES", samples=16, denoise=False)
+    out = sim.render_outputs(["rgb_linear", "depth"], sim.get_world_from_camera()[None], np.zeros((1, 0, 4, 4)), 0)
+    depth, rgb = np.asarray(out["depth"]), np.asarray(out["rgb_linear"])
+    assert np.allclose(depth, 0.95, atol=1e-4)  # the wall fills the view, square on
+    rows = rgb.mean(axis=(1, 2))
+    spectrum = np.abs(np.fft.rfft(rows - rows.mean()))
+    period = len(rows) / (np.argmax(spectrum[2:]) + 2)
+    expected = 0.075 * sim.K[1, 1] / 0.95
+    assert abs(period - expected) < 0.1 * expected, (period, expected)

@@ -66,7 +66,7 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
     blends, plans, geometries, names = [], [], [], set()
     for k in range(K):  # build every stage; keep its geometry for planning the trajectories
         site = build_site(seed, cfg.scene_preset, phase_folder(folder, k) / "scene", frames=anim, stage=k, stages=K,
-                          weather=cfg.weather)
+                          **cfg.site_overrides())
         blends.append(site.blend)
         plans.append(site.plan)
         sim = simulator(site.blend)

@@ -41,7 +41,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
 
         return run_phases(cfg, seed, folder, emit, executor)
     t0 = time.perf_counter()
-    site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames), weather=cfg.weather)
+    site = build_site(seed, cfg.scene_preset, folder / "scene", frames=max(250, cfg.frames), **cfg.site_overrides())
     sim = Simulator(site.blend, points_density=cfg.points_density, seed=seed, max_pcl_depth=cfg.max_depth,
                     render_preset=cfg.render_preset)
     check_point_budget(cfg, sim.num_points)  # before any rendering

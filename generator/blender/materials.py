@@ -15,7 +15,6 @@ import numpy as np
 from ..geometry.seeding import stream
 from ..scene.kinds import all_materials
 from ..scene.materials import DEFAULT, Material
-from .nodes import Graph
 
 
 
@@ -51,11 +50,6 @@ def make_material(key: str, seed: int):
         bsdf.inputs["Base Color"].default_value = (*surface.colour, 1.0)
     else:
         mat.node_tree.links.new(surface.colour, bsdf.inputs["Base Color"])
-    if surface.height is not None:
-        bump = nodes.new("ShaderNodeBump")
-        bump.inputs["Distance"].default_value = 1.0  # the height is in metres already
-        mat.node_tree.links.new(surface.height, bump.inputs["Height"])
-        mat.node_tree.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
     mat.diffuse_color = (*surface.base, 1.0)  # viewport / Workbench colour
     return mat
 
@@ -64,15 +58,13 @@ def make_material(key: str, seed: int):
 class DrawnSurface:
     """A material's look as drawn for one seed: its ``recipe``, ``base`` colour (jittered,
     linear RGB), ``colour`` (the base, or the output socket of its texture layers in the node
-    tree it was drawn into), ``roughness`` and ``specular`` (None: Blender's default), and
-    ``height`` (metres: the output socket of its bump map's height; None without one)."""
+    tree it was drawn into), ``roughness`` and ``specular`` (None: Blender's default)."""
 
     recipe: Material
     base: tuple[float, float, float]
     colour: object
     roughness: float
     specular: float | None
-    height: object = None
 
 
 def drawn_surface(tree, key: str, seed: int) -> DrawnSurface:
@@ -90,13 +82,7 @@ def drawn_surface(tree, key: str, seed: int) -> DrawnSurface:
     layers = recipe.patterns()
     if not layers:
         return DrawnSurface(recipe, colour, colour, roughness, specular)
-    textured = _add_layers(tree, layers, colour, rng, recipe.planar)
-    height = None
-    if recipe.bump > 0:  # a texture of its own: Cycles evaluates what feeds a bump three times, so it is one cheap noise
-        g = Graph(tree.nodes, tree.links)
-        vector = g.object_coordinates()
-        height = g.math("MULTIPLY", g.noise(vector, recipe.bump_scale, 2.0, planar=recipe.planar), recipe.bump)
-    return DrawnSurface(recipe, colour, textured, roughness, specular, height)
+    return DrawnSurface(recipe, colour, _add_layers(tree, layers, colour, rng, recipe.planar), roughness, specular)
 
 
 def _add_layers(tree, layers, colour, rng: np.random.Generator, planar: bool = False):
@@ -126,24 +112,61 @@ def _add_layers(tree, layers, colour, rng: np.random.Generator, planar: bool = F
 def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator, planar: bool = False):
     """The layer's texture at ``vector`` as a factor in [0, 1] (an output socket)."""
     scale = layer.scale * float(rng.uniform(0.8, 1.25))
+    return _TEXTURES[layer.kind](nodes, links, vector, layer, scale, planar)
+
+
+def _voronoi(nodes, links, vector, layer, scale: float, planar: bool):
+    """A stone at each cell: 1 at its centre, 0 at its edge, times its own shade."""
+    tex = nodes.new("ShaderNodeTexVoronoi")
+    tex.voronoi_dimensions = "2D" if planar else "3D"
+    tex.inputs["Scale"].default_value = scale
+    links.new(vector, tex.inputs["Vector"])
     ramp = nodes.new("ShaderNodeMapRange")
-    if layer.kind == "voronoi":  # a stone at each cell: 1 at its centre, 0 at its edge, times its own shade
-        tex = nodes.new("ShaderNodeTexVoronoi")
-        tex.voronoi_dimensions = "2D" if planar else "3D"
-        tex.inputs["Scale"].default_value = scale
-        links.new(vector, tex.inputs["Vector"])
-        ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.45, 0.1
-        links.new(tex.outputs["Distance"], ramp.inputs["Value"])
-        shade = nodes.new("ShaderNodeMath")
-        shade.operation = "MULTIPLY"
-        links.new(ramp.outputs["Result"], shade.inputs[0])
-        links.new(tex.outputs["Color"], shade.inputs[1])
-        return shade.outputs[0]
+    ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.45, 0.1
+    links.new(tex.outputs["Distance"], ramp.inputs["Value"])
+    shade = nodes.new("ShaderNodeMath")
+    shade.operation = "MULTIPLY"
+    links.new(ramp.outputs["Result"], shade.inputs[0])
+    links.new(tex.outputs["Color"], shade.inputs[1])
+    return shade.outputs[0]
+
+
+def _noise(nodes, links, vector, layer, scale: float, planar: bool):
+    """Fractal noise, its middle half stretched to [0, 1]."""
     tex = nodes.new("ShaderNodeTexNoise")
     tex.noise_dimensions = "2D" if planar else "3D"
     tex.inputs["Scale"].default_value = scale
     tex.inputs["Detail"].default_value = layer.detail
     links.new(vector, tex.inputs["Vector"])
+    ramp = nodes.new("ShaderNodeMapRange")
     ramp.inputs["From Min"].default_value, ramp.inputs["From Max"].default_value = 0.35, 0.65
     links.new(tex.outputs["Fac"], ramp.inputs["Value"])
     return ramp.outputs["Result"]
+
+
+def _courses(nodes, links, vector, layer, scale: float, planar: bool):
+    """1 on the joints of a running bond, 0 on the units: Blender's brick texture on (x + y, z),
+    so a vertical face along either object axis shows courses of 1 / ``layer.scale`` metres
+    (the drawn scale only shifts the bond, within 5%: brick and panel sizes are standards)."""
+    height = 1.0 / (layer.scale * (1.0 + 0.2 * (scale / layer.scale - 1.0)))  # the drawn jitter, 5x smaller
+    split = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(vector, split.inputs["Vector"])
+    along = nodes.new("ShaderNodeMath")
+    along.operation = "ADD"
+    links.new(split.outputs["X"], along.inputs[0])
+    links.new(split.outputs["Y"], along.inputs[1])
+    plane = nodes.new("ShaderNodeCombineXYZ")
+    links.new(along.outputs[0], plane.inputs["X"])
+    links.new(split.outputs["Z"], plane.inputs["Y"])
+    tex = nodes.new("ShaderNodeTexBrick")
+    tex.offset, tex.offset_frequency = 0.5, 2
+    links.new(plane.outputs["Vector"], tex.inputs["Vector"])
+    tex.inputs["Scale"].default_value = 1.0
+    tex.inputs["Row Height"].default_value = height
+    tex.inputs["Brick Width"].default_value = height * layer.aspect
+    tex.inputs["Mortar Size"].default_value = height * layer.joint
+    tex.inputs["Mortar Smooth"].default_value = 0.1
+    return tex.outputs["Fac"]
+
+
+_TEXTURES = {"noise": _noise, "voronoi": _voronoi, "courses": _courses}

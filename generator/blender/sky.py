@@ -25,7 +25,6 @@ import numpy as np
 
 from ..geometry.portable_math import sin, sincos
 from ..scene.weather import Weather
-from .nodes import Graph
 
 FOG_PROPERTY = "buildee_fog"  # scene property: JSON {"extinction_per_m": float, "colour": [r, g, b]}
 MIST_DEPTH = 100_000.0  # metres: the Mist pass's linear range (the sky reads as this far)
@@ -85,7 +84,16 @@ def fog_of_scene(scene) -> dict | None:
 
 def _math(nodes, links, operation: str, a, b=None):
     """A Math node ``operation`` of ``a`` and ``b`` (sockets or numbers); its output socket."""
-    return Graph(nodes, links).math(operation, a, b)
+    node = nodes.new("ShaderNodeMath")
+    node.operation = operation
+    for socket, value in zip(node.inputs, (a, b)):
+        if value is None:
+            continue
+        if isinstance(value, (int, float)):
+            socket.default_value = float(value)
+        else:
+            links.new(value, socket)
+    return node.outputs[0]
 
 
 def _view_direction(nodes, links):

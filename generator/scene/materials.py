@@ -18,24 +18,28 @@ from dataclasses import dataclass, replace
 @dataclass(frozen=True)
 class Pattern:
     """A procedural texture layer mixed into the base colour (dirt, rust, grain, stains,
-    gravel): a ``kind`` of texture (``noise``: fractal noise of ``detail`` octaves;
-    ``voronoi``: cells, e.g. stones, each of its own brightness) of ``scale`` features per
-    metre (in the object's own coordinates), blending towards ``colour`` (linear RGB) with
-    weight up to ``strength``. Colour only: the geometry, and so every ground-truth output,
-    is unchanged."""
+    gravel, mortar): a ``kind`` of texture (``noise``: fractal noise of ``detail`` octaves;
+    ``voronoi``: cells, e.g. stones, each of its own brightness; ``courses``: the joints of
+    a running bond on vertical faces, ``scale`` courses per metre of height, units ``aspect``
+    times as long as a course is high, joints ``joint`` of a course thick: brick mortar,
+    block joints, formwork panel joints) of ``scale`` features per metre (in the object's own
+    coordinates), blending towards ``colour`` (linear RGB) with weight up to ``strength``.
+    Colour only: the geometry, and so every ground-truth output, is unchanged."""
 
     scale: float
     colour: tuple[float, float, float]
     strength: float
     kind: str = "noise"
     detail: float = 6.0
+    aspect: float = 3.0
+    joint: float = 0.13
 
     def __post_init__(self):
         if self.kind not in PATTERN_KINDS:
             raise ValueError(f"Pattern kind {self.kind!r} is unknown; choose one of {', '.join(PATTERN_KINDS)}")
 
 
-PATTERN_KINDS = ("noise", "voronoi")
+PATTERN_KINDS = ("noise", "voronoi", "courses")
 
 
 @dataclass(frozen=True)
@@ -43,9 +47,7 @@ class Material:
     """A named surface: base ``colour`` (linear RGB, 0-1), ``roughness`` and ``metallic``
     (Principled BSDF, 0-1), an optional :class:`Pattern` and further ``layers`` applied over
     it in order (coarse to fine), and, where the site draws them per seed instead (the
-    paper's ground), ``roughness_range`` and ``specular_range``; ``bump``: the height (metres)
-    of a bump map (relief seen in the shading only, never in the geometry), a fractal noise of
-    ``bump_scale`` features per metre (0: none); ``planar``: the material lies on horizontal
+    paper's ground), ``roughness_range`` and ``specular_range``; ``planar``: the material lies on horizontal
     planes only (the ground), so its textures are evaluated in 2D, on x and y (cheaper to
     render, the same look); ``reflectivity``: the
     surface's diffuse reflectivity for a near-infrared (905 nm) laser, in [0, 1], where it is
@@ -61,8 +63,6 @@ class Material:
     specular_range: tuple[float, float] | None = None
     layers: tuple[Pattern, ...] = ()
     reflectivity: float | None = None
-    bump: float = 0.0
-    bump_scale: float = 2.0
     planar: bool = False
 
     def __post_init__(self):
@@ -98,16 +98,20 @@ def recoloured(material: Material, name: str, tint, **changes) -> Material:
 
 
 # cast concrete, over its base pattern: stains and colour variation of half a metre to a few
-# metres, and a mottle of centimetres (pores, aggregate)
+# metres, a mottle of centimetres (pores, aggregate), and the joints of its formwork panels
+# (1.2 m high, 2.4 m long)
 CONCRETE_LAYERS = (Pattern(0.6, (0.26, 0.25, 0.22), 0.6, detail=4.0),
-                   Pattern(12.0, (0.62, 0.61, 0.57), 0.45, detail=2.0))
+                   Pattern(12.0, (0.62, 0.61, 0.57), 0.45, detail=2.0),
+                   Pattern(1 / 1.2, (0.3, 0.29, 0.27), 0.5, kind="courses", aspect=2.0, joint=0.012))
 
 DEFAULT = "default"  # the material of faces whose material nobody declares
 
 SHARED: tuple[Material, ...] = (
     Material(DEFAULT, (0.5, 0.5, 0.5), 0.6),
     Material("concrete", (0.45, 0.44, 0.41), 0.85, 0.0, Pattern(3.0, (0.33, 0.32, 0.3), 0.5), layers=CONCRETE_LAYERS),
-    Material("brick", (0.42, 0.12, 0.06), 0.85, 0.0, Pattern(10.0, (0.3, 0.08, 0.05), 0.5)),
+    # 65 mm bricks in 75 mm courses, 215 mm long, 10 mm light mortar joints
+    Material("brick", (0.42, 0.12, 0.06), 0.85, 0.0, Pattern(10.0, (0.3, 0.08, 0.05), 0.5),
+             layers=(Pattern(13.3, (0.5, 0.48, 0.44), 0.75, kind="courses", aspect=3.0, joint=0.13),)),
     Material("rebar", (0.25, 0.12, 0.06), 0.7, 0.6, Pattern(20.0, (0.4, 0.18, 0.07), 0.6)),
     Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3),
              reflectivity=0.45),  # bare metal: mostly specular, little comes back off-axis

@@ -12,8 +12,8 @@ from dataclasses import asdict, dataclass
 from ...geometry.seeding import stream
 from ..assets import Part
 from ..kinds import AssetKind, register
-from ..materials import SHARED, Material, Pattern, recoloured
 from ..ground_layout import GroundRegions, ground_mesh
+from ..materials import SHARED, Material, Pattern, recoloured
 from ..meshes import MeshBuilder
 
 GROUND_MARGIN = 20.0  # metres of ground beyond the site's edge on every side (seen from the spawn volume)
@@ -28,15 +28,12 @@ def surface_material(surface: str) -> str:
 # benchmarks/surfaces.py): (features per metre, the layer's colour as a multiple of the base
 # colour, strength, kind): areas tens of metres across, light patches and a dark mottle of a
 # metre or two, clods of decimetres, grains of centimetres.
-SOIL_STRUCTURE = ((0.5, 2.2, 0.7, "noise"), (1.5, 0.35, 0.85, "voronoi"), (0.9, 0.45, 0.6, "noise"),
-                  (5.0, 0.57, 0.6, "voronoi"), (25.0, 1.8, 0.5, "voronoi"))
-
-
-SOIL_BUMP = 0.3  # metres: the bump map of every surface (Material.bump), of 2 features per metre
+SOIL_STRUCTURE = ((0.5, 2.5, 0.8, "noise"), (0.7, 0.4, 0.6, "voronoi"), (1.5, 0.35, 0.85, "voronoi"),
+                  (0.9, 0.45, 0.6, "noise"), (5.0, 0.57, 0.6, "voronoi"), (25.0, 1.8, 0.5, "voronoi"))
 
 
 def soil(name: str, colour: tuple[float, float, float], extra: tuple[Pattern, ...] = (),
-         roughness_range=(0.5, 1.0), specular_range=(0.1, 0.7)) -> Material:
+         roughness_range=(0.5, 1.0), specular_range=(0.05, 0.2)) -> Material:
     """A ground surface of base ``colour`` (linear RGB) with the shared contrast structure, damp
     and dry areas about 25 m across (half the base's brightness), and ``extra`` layers on top;
     roughness and specular drawn per seed as the paper's ground."""
@@ -44,17 +41,17 @@ def soil(name: str, colour: tuple[float, float, float], extra: tuple[Pattern, ..
                       detail=4.0 if kind == "noise" and scale < 0.6 else 3.0) for scale, k, strength, kind in SOIL_STRUCTURE]
     return Material(surface_material(name), colour, 0.9, 0.0, Pattern(0.04, tuple(0.52 * c for c in colour), 0.6, detail=4.0),
                     roughness_range=roughness_range, specular_range=specular_range, layers=tuple(scaled) + extra,
-                    bump=SOIL_BUMP, planar=True)
+                    planar=True)
 
 
 # name: (weight per seed, material)
 SURFACES: dict[str, tuple[float, Material]] = {
     "compacted-soil": (0.25, soil("compacted-soil", (0.23, 0.18, 0.12))),
     "mud": (0.2, soil("mud", (0.13, 0.1, 0.07), (Pattern(12.0, (0.05, 0.04, 0.03), 0.4, kind="voronoi"),),  # wet clods
-                      roughness_range=(0.45, 0.8), specular_range=(0.3, 0.6))),
+                      roughness_range=(0.45, 0.8), specular_range=(0.2, 0.4))),
     # crushed-stone hardstanding: grey, with stones of several centimetres
-    "gravel": (0.2, soil("gravel", (0.16, 0.155, 0.145), (Pattern(12.0, (0.38, 0.37, 0.35), 0.3, kind="voronoi"),))),
-    "dry-dust": (0.2, soil("dry-dust", (0.3, 0.25, 0.18), roughness_range=(0.8, 1.0), specular_range=(0.1, 0.4))),
+    "gravel": (0.2, soil("gravel", (0.16, 0.155, 0.145))),
+    "dry-dust": (0.2, soil("dry-dust", (0.3, 0.25, 0.18), roughness_range=(0.8, 1.0), specular_range=(0.05, 0.2))),
     "clay": (0.15, soil("clay", (0.3, 0.14, 0.06))),
 }
 # the haul road's and gate access's surface: name: (weight per seed, the material whose colour,
