@@ -45,6 +45,34 @@ def _shard(text: str) -> tuple[int, int]:
     return k, n
 
 
+def _add_site_arguments(p) -> None:
+    """What every seed's site is: its timeline's stages, its weather, its ground."""
+    p.add_argument("--phases", type=int_at_least(1, "phases", MAX_PHASES), default=1,
+                   help=f"stages of each site's timeline, 1 to {MAX_PHASES}: phase_K/ folders flown along the same "
+                        "trajectories plus changes.h5 (default: 1, one site as before; docs/phases.md)")
+    p.add_argument("--weather", choices=WEATHERS, default=None,
+                   help="sky and weather of every seed: " + ", ".join(WEATHERS) + " (default: drawn per seed; "
+                        "docs/scenes.md)")
+    p.add_argument("--ground", choices=SURFACES, default=None,
+                   help="the ground's surface on every seed: " + ", ".join(SURFACES) + " (default: drawn per seed; "
+                        "docs/scenes.md)")
+
+
+def _add_rerun_arguments(p) -> None:
+    """Which seeds this run takes, and what it does with seeds already there."""
+    p.add_argument("--shard", type=_shard, default=(0, 1),
+                   help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace seeds that are already complete (the old folder stays until the new one is complete)")
+    p.add_argument("--verify", action="store_true",
+                   help="hash every file of complete seeds before skipping them (default: check sizes, and hash "
+                        "files whose modification time changed)")
+    p.add_argument("--repair", action="store_true",
+                   help="hash every file of complete seeds (as --verify) and redo those whose files fail the check")
+    p.add_argument("--wait", action="store_true",
+                   help="wait for seeds another run is writing (default: skip them, exit code 4)")
+
+
 def parse_args(argv=None) -> argparse.Namespace:
     p = OneLineParser(
         prog="python -m generator",
@@ -83,27 +111,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
-    p.add_argument("--phases", type=int_at_least(1, "phases", MAX_PHASES), default=1,
-                   help=f"stages of each site's timeline, 1 to {MAX_PHASES}: phase_K/ folders flown along the same "
-                        "trajectories plus changes.h5 (default: 1, one site as before; docs/phases.md)")
-    p.add_argument("--weather", choices=WEATHERS, default=None,
-                   help="sky and weather of every seed: " + ", ".join(WEATHERS) + " (default: drawn per seed; "
-                        "docs/scenes.md)")
-    p.add_argument("--ground", choices=SURFACES, default=None,
-                   help="the ground's surface on every seed: " + ", ".join(SURFACES) + " (default: drawn per seed; "
-                        "docs/scenes.md)")
+    _add_site_arguments(p)
     add_executor_arguments(p)  # --executor and each executor's own options (generator/batch/executors/)
-    p.add_argument("--shard", type=_shard, default=(0, 1),
-                   help="K/N: process only the seeds at positions K, K+N, K+2N, ... of --seeds (default: 0/1)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace seeds that are already complete (the old folder stays until the new one is complete)")
-    p.add_argument("--verify", action="store_true",
-                   help="hash every file of complete seeds before skipping them (default: check sizes, and hash "
-                        "files whose modification time changed)")
-    p.add_argument("--repair", action="store_true",
-                   help="hash every file of complete seeds (as --verify) and redo those whose files fail the check")
-    p.add_argument("--wait", action="store_true",
-                   help="wait for seeds another run is writing (default: skip them, exit code 4)")
+    _add_rerun_arguments(p)
     args = p.parse_args(argv)
     twice = first_repeated(args.seeds)
     if twice is not None:
