@@ -7,14 +7,13 @@ module turns a declaration into a Principled BSDF node tree (:func:`make_materia
 from __future__ import annotations
 
 import colorsys
-from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from ..geometry.seeding import stream
 from ..scene.kinds import all_materials
-from ..scene.materials import DEFAULT, Material
+from ..scene.materials import DEFAULT
 
 
 
@@ -32,57 +31,34 @@ def material_name(key: str) -> str:
 
 
 def make_material(key: str, seed: int):
-    """The material ``key`` of this site's seed (created once per file)."""
+    """The material ``key`` of this site's seed (created once per file): its colour and
+    roughness jittered from the stream of (seed, "material", key), its texture layers as nodes."""
     name = material_name(key)
     if name in bpy.data.materials:
         return bpy.data.materials[name]
+    recipes = all_materials()  # read now: a kind registered after this module's import has its materials
+    recipe = recipes.get(key, recipes[DEFAULT])
+    rng = stream(seed, "material", key)
     mat = bpy.data.materials.new(name)
     if mat.node_tree is None:
         mat.use_nodes = True
     nodes = mat.node_tree.nodes
     bsdf = nodes.get("Principled BSDF") or nodes.new("ShaderNodeBsdfPrincipled")
-    surface = drawn_surface(mat.node_tree, key, seed)
-    bsdf.inputs["Roughness"].default_value = surface.roughness
-    bsdf.inputs["Metallic"].default_value = surface.recipe.metallic
-    if surface.specular is not None:
-        bsdf.inputs["Specular IOR Level"].default_value = surface.specular
-    if isinstance(surface.colour, tuple):
-        bsdf.inputs["Base Color"].default_value = (*surface.colour, 1.0)
-    else:
-        mat.node_tree.links.new(surface.colour, bsdf.inputs["Base Color"])
-    mat.diffuse_color = (*surface.base, 1.0)  # viewport / Workbench colour
-    return mat
-
-
-@dataclass(frozen=True)
-class DrawnSurface:
-    """A material's look as drawn for one seed: its ``recipe``, ``base`` colour (jittered,
-    linear RGB), ``colour`` (the base, or the output socket of its texture layers in the node
-    tree it was drawn into), ``roughness`` and ``specular`` (None: Blender's default)."""
-
-    recipe: Material
-    base: tuple[float, float, float]
-    colour: object
-    roughness: float
-    specular: float | None
-
-
-def drawn_surface(tree, key: str, seed: int) -> DrawnSurface:
-    """Material ``key`` of the site of ``seed`` drawn into the node tree ``tree``: its colour
-    and roughness jittered from the stream of (seed, "material", key), its texture layers as
-    nodes of ``tree``."""
-    recipes = all_materials()  # read now: a kind registered after this module's import has its materials
-    recipe = recipes.get(key, recipes[DEFAULT])
-    rng = stream(seed, "material", key)
     colour = _jitter(recipe.colour, rng)
     roughness = float(np.clip(recipe.roughness + rng.uniform(-0.1, 0.1), 0.02, 1.0))
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["Metallic"].default_value = recipe.metallic
     if recipe.roughness_range is not None:  # drawn per seed (the paper's ground)
-        roughness = float(rng.uniform(*recipe.roughness_range))
-    specular = float(rng.uniform(*recipe.specular_range)) if recipe.specular_range is not None else None
+        bsdf.inputs["Roughness"].default_value = float(rng.uniform(*recipe.roughness_range))
+    if recipe.specular_range is not None:
+        bsdf.inputs["Specular IOR Level"].default_value = float(rng.uniform(*recipe.specular_range))
     layers = recipe.patterns()
     if not layers:
-        return DrawnSurface(recipe, colour, colour, roughness, specular)
-    return DrawnSurface(recipe, colour, _add_layers(tree, layers, colour, rng, recipe.planar), roughness, specular)
+        bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+    else:
+        mat.node_tree.links.new(_add_layers(mat.node_tree, layers, colour, rng, recipe.planar), bsdf.inputs["Base Color"])
+    mat.diffuse_color = (*colour, 1.0)  # viewport / Workbench colour
+    return mat
 
 
 def _add_layers(tree, layers, colour, rng: np.random.Generator, planar: bool = False):
