@@ -40,10 +40,11 @@ def test_an_unknown_ground_is_one_line_and_exit_2(tmp_path):
                                        "snow"], capture_output=True, text=True, cwd=ROOT), "--ground", "dry-dust")
 
 
-def test_the_ground_is_one_plane_cut_into_its_regions():
-    """Every face at z = 0 facing up, covering the ground's square exactly once; road and tracks
-    along the plan's road (or on the gate access), the site's surface off it, grass beyond
-    the fence."""
+def test_the_ground_is_one_surface_cut_into_its_regions():
+    """Every face turned to the air, the faces seen from above covering the ground's square
+    exactly once (the relief included); the site's surface and the road level at z = 0, the
+    tracks too or sunk as ruts; road and tracks along the plan's road (or on the gate access),
+    the site's surface off it, grass beyond the fence."""
     from generator.scene.catalogue.ground import GROUND_MARGIN
     from generator.scene.ground_layout import TRACK_OFFSET_M
     from generator.scene.site import GATE, plan_site, site_ground, site_params
@@ -52,11 +53,10 @@ def test_the_ground_is_one_plane_cut_into_its_regions():
         plan = plan_site(seed, site_params(preset, frames=20))
         mesh = site_ground(plan).mesh
         v = mesh.vertices
-        assert np.all(v[:, 2] == 0.0)
         faces = list(mesh.quads) + list(mesh.tris)
         x, y = [np.array([v[f, k] for f in faces], dtype=object) for k in (0, 1)]
         area = np.array([0.5 * np.sum(a * np.roll(b, -1) - np.roll(a, -1) * b) for a, b in zip(x, y)])
-        assert area.min() > 0  # counter-clockwise from above: normals up
+        assert area.min() >= 0 and np.mean(area > 0) > 0.99  # counter-clockwise from above (dig walls: vertical)
         side = plan.params.size + 2 * GROUND_MARGIN
         assert area.sum() == pytest.approx(side * side, rel=1e-12)
         centroid = np.array([v[f, :2].mean(axis=0) for f in faces])
@@ -74,6 +74,11 @@ def test_the_ground_is_one_plane_cut_into_its_regions():
         assert np.all(np.abs(d[tracks] - TRACK_OFFSET_M) < 0.5)
         surface = material == ground.material
         assert np.all(np.abs(centroid[surface]).max(axis=1) < half)
+        z = np.array([v[f, 2].max() - 0 for f in faces]), np.array([v[f, 2].min() for f in faces])
+        level = surface | (material == ground.road_material)
+        assert np.all(z[0][level] == 0.0) and np.all(z[1][level] == 0.0)
+        ruts = ground.rut_depth
+        assert (ruts == 0.0) == paved and np.all(np.isin(z[1][material == ground.tracks_material], [0.0, -ruts]))
         if paved:
             assert np.all(d[surface] > 0.3) and not gate[surface & (np.abs(centroid[:, 1]) > half - 2)].any()
         assert np.all(np.abs(centroid[material == "grass"]).max(axis=1) > half)
@@ -132,8 +137,10 @@ def road_distance(site, sim, view):
     K, pose = view.K, sim.get_world_from_camera()
     rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)  # OpenCV camera
     world = (rays[ground] * view.depth[ground][:, None]) @ pose[:3, :3].T + pose[:3, 3]
-    assert np.abs(world[:, 2]).max() < 0.05  # ground pixels lie on the plane z = 0
-    return ground, distance_to_polyline(world[:, :2], site.plan.road), world
+    level = np.abs(world[:, 2]) < 0.05  # the working level (not a spoil heap, a dig or the terrain)
+    assert level.mean() > 0.5  # (the view takes in the terrain beyond the fence)
+    ground[ground] = level
+    return ground, distance_to_polyline(world[level, :2], site.plan.road), world[level]
 
 
 def test_the_asphalt_road_is_where_the_plan_puts_the_road(looks):

@@ -137,24 +137,25 @@ def test_objects_rest_on_ground_and_do_not_intersect(small_site):
 
 
 def test_surface_points_lie_on_surfaces_cameras_can_reach(small_site):
-    """The ground is one flat top surface; no surface point lies below it (beyond 5 cm) or
-    on a face resting on it, in the Simulator's points and in the scoring cloud."""
+    """The ground is one open surface turned to the air, level at z = 0 but for its relief; no
+    surface point but the ground's lies below the level (beyond 5 cm) or on a face resting on
+    it, in the Simulator's points and in the scoring cloud."""
     from exporters.ground_truth import sample_scoring_points
     from generator.geometry.sampling import CONTACT_TOLERANCE, contact_faces, ground_height
 
     sim = Simulator(small_site.blend, points_density=5.0)
     parts = sim.scene_parts()
-    ground = [p for p in parts if p.label == "Ground"]
-    assert len(ground) == 1 and not ground[0].closed and len(ground[0].faces) > 2  # cut where its material changes
-    assert np.all(ground[0].vertices[:, 2] == 0.0) and ground_height(parts) == 0.0
+    ground = [p for p in parts if p.label == "Ground" and not p.closed]
+    assert len(ground) == 1 and len(ground[0].faces) > 2  # cut where its material changes
+    assert ground_height(parts) == 0.0 and ground[0].vertices[:, 2].min() < -0.03  # ruts at least
     v, f = ground[0].vertices, ground[0].faces
     up = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])[:, 2]
-    assert np.all(up > 0)  # every face of the plane faces up
+    assert np.all(up >= 0) and np.mean(up > 0) > 0.99  # faces turned to the air (dig walls: vertical)
     # the faces the rule drops exist (bottoms of props), and face straight down at z = 0
     dropped: dict[str, int] = {}
     for p in parts:
         dropped[p.label] = dropped.get(p.label, 0) + int(contact_faces(p, 0.0).sum())
-    assert sum(dropped.values()) > 20 and dropped["Ground"] == 0
+    assert sum(dropped.values()) > 20 and not contact_faces(ground[0], 0.0).any()
     assert {"Container", "Cabin"} & {k for k, v in dropped.items() if v}
     pts, labels, _ = sim.compute_point_cloud(update_mask=False)
     normals = sim.surface_sample()["local_normals"]  # static parts: world frame
@@ -162,10 +163,10 @@ def test_surface_points_lie_on_surfaces_cameras_can_reach(small_site):
     scoring = sample_scoring_points(parts, sim.label_ids, 20.0, 0)
     for xyz, nrm, on_ground in ((pts[static], normals[static], labels[static] == sim.label_ids["Ground"]),
                                 (scoring["xyz"], scoring["normals"], scoring["label"] == sim.label_ids["Ground"])):
-        assert xyz[:, 2].min() >= -0.05
+        assert xyz[~on_ground, 2].min() >= -0.05
         low = (xyz[:, 2] <= CONTACT_TOLERANCE) & ~on_ground
         assert not np.any(low & (nrm[:, 2] < -0.99)), "points on a face resting on the ground"
-        assert on_ground.sum() > 0.3 * len(xyz) and np.all(xyz[on_ground, 2] == 0.0)
+        assert on_ground.sum() > 0.3 * len(xyz)
     # negative control: without the rule, the same sampling puts points on those faces
     bottoms = [p for p in parts if contact_faces(p, 0.0).any()]
     raw, _ = sample_triangles(bottoms[0].vertices, bottoms[0].faces[contact_faces(bottoms[0], 0.0)], 50.0,

@@ -12,7 +12,7 @@ from bpy_extras import anim_utils
 from ..geometry.portable_math import atan2, hypot, sincos
 from ..scene.assets import Asset
 from ..scene.meshes import MeshData
-from ..scene.site import SitePlan, fence_part, site_ground
+from ..scene.site import SitePlan, fence_part, site_ground, wet_materials
 from ..scene.timeline import object_name
 from ..scene.taxonomy import CLASSES
 from . import session
@@ -135,15 +135,15 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
     seed = plan.seed
     timeline = plan.stages > 1  # stable object names over the stages (docs/phases.md)
     with session.quiet():
-        add_asset(Asset("Ground", [site_ground(plan)], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"),
+        ground = site_ground(plan)
+        add_asset(Asset("Ground", [ground], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"),
                   uid=0 if timeline else None)
         fences = [fence_part(a, b) for a, b in plan.fence_runs]
         add_asset(Asset("Fence", fences, (0.0, 0.0)), (0.0, 0.0), 0.0, seed, _collection("Fence"), uid=0 if timeline else None)
         for index, placed in enumerate(plan.placed):
             add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index,
                       uid=placed.uid if timeline else None)
-        build_sky(plan.weather, [make_material(m, seed) for m in (plan.ground.material, plan.ground.road_material,
-                                                                  plan.ground.tracks_material)])
+        build_sky(plan.weather, [make_material(m, seed) for m in wet_materials(ground)])
         lo, hi = plan.spawn_box
         spawn = bpy.data.objects.new("CameraSpawn", mesh_from_data("CameraSpawn", _box_data(lo, hi), seed))
         scene.collection.objects.link(spawn)

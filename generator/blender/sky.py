@@ -34,7 +34,7 @@ OVERCAST_COLOUR = (0.105, 0.11, 0.12)  # the overcast zenith's radiance before t
 
 def build_sky(weather: Weather, ground=()) -> None:
     """Sun lamp, world shader, exposure and fog of ``weather`` in the open scene; wet ground
-    on the materials ``ground`` (the site's ground's: surface, road, tracks; each once) when
+    on the materials ``ground`` (the site's ground's but the grass: surface, road, tracks, digs; each once) when
     the weather is wet."""
     scene = bpy.context.scene
     elevation, azimuth = math.radians(weather.sun_elevation_deg), math.radians(weather.sun_azimuth_deg)

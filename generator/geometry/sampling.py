@@ -1,5 +1,5 @@
 """Area-weighted, seeded sampling of points on triangle surfaces, and which faces carry
-surface points (all but the faces of solids resting on the ground: docs/scenes.md)."""
+surface points (all but the faces of solids resting on the working level: docs/scenes.md)."""
 
 from __future__ import annotations
 
@@ -45,29 +45,49 @@ def sample_triangles(
 
 # ---- which faces carry surface points -------------------------------------------------
 GROUND_LABEL = "Ground"
-CONTACT_TOLERANCE = 0.01  # metres: a face this close to the ground plane lies on it
+CONTACT_TOLERANCE = 0.01  # metres: a face this close to the working level lies on it
 CONTACT_COS = 0.999  # a contact face's outward normal is within ~2.6 degrees of straight down
 
 
 def ground_height(parts: list[MeshPart]) -> float | None:
-    """z (metres) of the scene's ground plane: the parts labelled ``Ground`` when they are
-    all flat and horizontal (vertex heights within ``CONTACT_TOLERANCE``); None otherwise
-    (no ground, or an uneven one: then no face counts as a contact face)."""
-    z = [p.world_vertices()[:, 2] for p in parts if p.label == GROUND_LABEL and len(p.vertices)]
-    if not z:
+    """z (metres) of the scene's working level: the height of the largest area of level,
+    upward-facing faces of the parts labelled ``Ground`` (faces within ``CONTACT_TOLERANCE``
+    of one height, normals within ~2.6 degrees of straight up; a site's ground beside its
+    digs, ruts and terrain; within that 1 cm band, the one height holding the most area).
+    None when the ground has no level face."""
+    heights, areas = [], []
+    for p in parts:
+        if p.label != GROUND_LABEL or not len(p.faces):
+            continue
+        v = p.world_vertices()
+        f = np.asarray(p.faces, dtype=np.int64)
+        a, b, c = (v[f[:, k]] for k in range(3))
+        cross = np.cross(b - a, c - a)
+        area = 0.5 * np.linalg.norm(cross, axis=1)
+        z = v[f][:, :, 2]
+        up = cross[:, 2] * (p.outward if p.closed else 1) >= CONTACT_COS * 2 * area
+        level = up & (area > 0) & (z.max(axis=1) - z.min(axis=1) <= CONTACT_TOLERANCE)
+        heights.append(z[level].max(axis=1))
+        areas.append(area[level])
+    if not heights or not len(np.concatenate(heights)):
         return None
-    z = np.concatenate(z)
-    return float(z.max()) if float(z.max() - z.min()) <= CONTACT_TOLERANCE else None
+    h, a = np.concatenate(heights), np.concatenate(areas)
+    bins = np.round(h / CONTACT_TOLERANCE).astype(np.int64)
+    values, inverse = np.unique(bins, return_inverse=True)
+    best = inverse == int(np.argmax(np.bincount(inverse, weights=a)))
+    exact, where = np.unique(h[best], return_inverse=True)  # in that band, the height holding the most area
+    return float(exact[int(np.argmax(np.bincount(where, weights=a[best])))])
 
 
 def contact_faces(part: MeshPart, ground_z: float | None) -> np.ndarray:
     """(F,) bool: faces of ``part`` resting on the ground, which no camera can see: faces of
     a closed part (a solid) whose outward normal points straight down and whose three
-    vertices lie within ``CONTACT_TOLERANCE`` of the ground plane, at the part's current
-    matrix. The ground itself and open surfaces have none."""
+    vertices lie within ``CONTACT_TOLERANCE`` of the working level (:func:`ground_height`),
+    at the part's current matrix; a spoil heap's base too (a solid labelled ``Ground``). The
+    ground's open surface and other open surfaces have none."""
     faces = np.asarray(part.faces, dtype=np.int64)
     out = np.zeros(len(faces), dtype=bool)
-    if ground_z is None or part.label == GROUND_LABEL or not part.closed or len(faces) == 0:
+    if ground_z is None or not part.closed or len(faces) == 0:
         return out
     m = np.asarray(part.matrix, dtype=np.float64)
     world_z = part.world_vertices()[:, 2]

@@ -1,30 +1,38 @@
-"""The ground's faces (bpy-free): one flat surface at z = 0, cut into the regions that are
-made of different things, each face naming its material.
+"""The ground's faces (bpy-free): the working level at z = 0 with the site's relief, cut
+into the regions that are made of different things, each face naming its material.
 
 - the haul road loop: a band ``width`` wide along a rounded square centre line (half-side
   ``road_half``, corner radius ``corner``), in five strips across it: road, a tyre track,
   road, a tyre track, road (tracks about 0.5 m wide, ``TRACK_OFFSET_M`` either side of the
-  centre line, wandering a little along the road);
+  centre line, wandering a little along the road); on an unpaved road the tracks are ruts,
+  sunk ``ruts`` metres with sides ``RUT_SIDE_M`` wide;
 - the gate access: the strip between the road and the gate in the south fence (x in
-  ``gate``), road with two tracks;
-- the site inside the road loop and between the road and the fence: the site's surface;
-- beyond the fence (``margin`` metres on every side): grass and weeds.
+  ``gate``), road with two tracks (level);
+- the site inside the road loop, with the ``digs`` of :mod:`.relief` cut into it (their
+  floors and sides of the ``excavated`` material), and between the road and the fence: the
+  site's surface;
+- beyond the fence (``margin`` metres on every side): grass and weeds, on the ``terrain`` of
+  :mod:`.relief` (level when None), in rows ``VERGE_STEP_M`` apart.
 
-Every face is flat at z = 0 with its normal up: the regions only choose the material, so the
-ground truth (depth, labels, points, contact faces) is that of one plane.
+Every face is turned towards the open air (normals up on the level). Neighbouring regions
+share their vertices along their borders (no T-junctions), so the ground is watertight.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mapbox_earcut
 import numpy as np
 
 from ..geometry.portable_math import sin, sincos, vector_norm
 from .meshes import MeshBuilder, MeshData
+from .relief import Dig, Terrain
 
 TRACK_OFFSET_M = 1.1  # a tyre track's distance from the centre line (a truck's half track width)
 TRACK_HALF_WIDTH_M = 0.25
+RUT_SIDE_M = 0.08  # a rut's sloping side, across the road
+VERGE_STEP_M = 2.0  # rows of the terrain beyond the fence
 STEP_M = 2.0  # most length of a straight road piece between vertices
 ARC_STEP_DEG = 15  # corner arcs in steps of this (a multiple that holds 45: the ray to the square's corner)
 
@@ -43,6 +51,10 @@ class GroundRegions:
     road: str  # the road's,
     tracks: str  # the tyre tracks',
     verge: str  # beyond the fence
+    excavated: str = "ground-spoil"  # the digs' floors and sides
+    ruts: float = 0.0  # metres the tyre tracks are sunk (0: level)
+    digs: tuple[Dig, ...] = ()
+    terrain: Terrain | None = None
 
 
 def centre_line(r: GroundRegions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -89,40 +101,88 @@ def _to_square(q: np.ndarray, n: np.ndarray, half: float) -> np.ndarray:
     return q + n * np.minimum(tx, ty)[:, None]
 
 
+def _lift(xy: np.ndarray, z) -> np.ndarray:
+    return np.column_stack([xy, np.broadcast_to(np.asarray(z, dtype=np.float64), (len(xy),))])
+
+
 def _ring(builder: MeshBuilder, inner: np.ndarray, outer: np.ndarray, materials) -> None:
-    """Quads between two closed rows of points (counter-clockwise, ``outer`` outside
-    ``inner``), quad i of material ``materials[i]``."""
+    """Two triangles between each pair of neighbours of two closed rows of points (N, 3),
+    counter-clockwise seen from above, ``outer`` outside ``inner``; the pair from point i of
+    material ``materials[i]``."""
     m = len(inner)
     nxt = (np.arange(m) + 1) % m
     verts = np.concatenate([inner, outer])
-    xyz = np.column_stack([verts, np.zeros(len(verts))])
-    quads = np.column_stack([np.arange(m), m + np.arange(m), m + nxt, nxt])
+    i, o = np.arange(m), m + np.arange(m)
+    tris = np.concatenate([np.column_stack([i, o, m + nxt]), np.column_stack([i, m + nxt, nxt])])
+    mats = list(materials) * 2
     for name in dict.fromkeys(materials):
-        pick = np.array([x == name for x in materials])
-        builder.add(xyz, quads=quads[pick], material=name)
+        pick = np.array([x == name for x in mats])
+        builder.add(verts, tris=tris[pick], material=name)
+
+
+def _road_rows(r: GroundRegions, p: np.ndarray, n: np.ndarray, along: np.ndarray):
+    """The rows of points (N, 3) across the road, inside out, and each strip's material."""
+    t, h, e = TRACK_OFFSET_M, TRACK_HALF_WIDTH_M, RUT_SIDE_M
+    if r.ruts > 0:
+        offsets = [-r.width / 2, -(t + h), -(t + h) + e, -(t - h) - e, -(t - h), t - h, t - h + e, t + h - e, t + h, r.width / 2]
+        depth = [0, 0, 1, 1, 0, 0, 1, 1, 0, 0]
+        strips = [r.road, r.tracks, r.tracks, r.tracks, r.road, r.tracks, r.tracks, r.tracks, r.road]
+    else:
+        offsets = [-r.width / 2, -(t + h), -(t - h), t - h, t + h, r.width / 2]
+        depth = [0] * 6
+        strips = [r.road, r.tracks, r.road, r.tracks, r.road]
+    wander = _wander(along)
+    last = len(offsets) - 1
+    rows = [_lift(p + n * (o + (wander if 0 < k < last else np.zeros(len(p))))[:, None], -r.ruts * depth[k]) for k, o in enumerate(offsets)]
+    return rows, strips
+
+
+def _inside(b: MeshBuilder, r: GroundRegions, rim: np.ndarray) -> None:
+    """The level inside the road loop (its edge ``rim`` (N, 2), counter-clockwise) with the
+    digs cut out of it, and the digs' faces."""
+    holes = [d.outline() for d in r.digs]
+    flat = np.concatenate([rim] + holes)
+    ends = np.cumsum([len(rim)] + [len(h) for h in holes]).astype(np.uint32)
+    tris = mapbox_earcut.triangulate_float64(flat, ends).reshape(-1, 3).astype(np.int64)
+    a, b_, c = (flat[tris[:, k]] for k in range(3))
+    clockwise = (b_[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b_[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    tris[clockwise] = tris[clockwise][:, [0, 2, 1]]  # normals up
+    b.add(_lift(flat, 0.0), tris=tris, material=r.surface)
+    for d in r.digs:
+        verts, faces = d.faces()
+        b.add(verts, tris=faces, material=r.excavated)
+
+
+def _verge(b: MeshBuilder, r: GroundRegions, edge: np.ndarray) -> None:
+    """Grass beyond the fence: rows pushed out from the fence line's points ``edge`` (N, 2),
+    each perpendicular to its side (corners diagonally), on the terrain."""
+    out = np.where(np.abs(edge) >= r.half - 1e-9, np.sign(edge), 0.0)
+    rows = int(np.ceil(r.margin / VERGE_STEP_M))
+    prev = _lift(edge, 0.0)
+    for k in range(1, rows + 1):
+        beyond = r.margin * k / rows
+        xy = edge + out * beyond
+        z = np.zeros(len(xy)) if r.terrain is None else r.terrain.height(xy, np.full(len(xy), beyond))
+        row = np.column_stack([xy, z])
+        _ring(b, prev, row, [r.verge] * len(edge))
+        prev = row
 
 
 def ground_mesh(r: GroundRegions) -> MeshData:
-    """The ground's faces (module docstring), all at z = 0 with their normals up."""
+    """The ground's faces (module docstring)."""
     p, n, along = centre_line(r)
-    t, h = TRACK_OFFSET_M, TRACK_HALF_WIDTH_M
-    offsets = [-r.width / 2, -(t + h), -(t - h), t - h, t + h, r.width / 2]
-    wander = _wander(along)
-    rows = [p + n * (o + (wander if 0 < k < 5 else np.zeros(len(p))))[:, None] for k, o in enumerate(offsets)]
+    rows, strips = _road_rows(r, p, n, along)
     b = MeshBuilder()
-    inner = rows[0]
-    xyz = np.column_stack([np.vstack([[0.0, 0.0], inner]), np.zeros(len(inner) + 1)])
-    m = len(inner)
-    b.add(xyz, tris=np.column_stack([np.zeros(m, dtype=int), 1 + np.arange(m), 1 + (np.arange(m) + 1) % m]),
-          material=r.surface)
-    for k in range(5):
-        _ring(b, rows[k], rows[k + 1], [r.tracks if k in (1, 3) else r.road] * m)
-    edge = _to_square(rows[5], n, r.half)
-    mid = (rows[5] + np.roll(rows[5], -1, axis=0)) / 2
+    m = len(p)
+    _inside(b, r, rows[0][:, :2])
+    for k, material in enumerate(strips):
+        _ring(b, rows[k], rows[k + 1], [material] * m)
+    outer = rows[-1][:, :2]
+    edge = _to_square(outer, n, r.half)
+    mid = (outer + np.roll(outer, -1, axis=0)) / 2
     south = (n[:, 1] < -0.999) & (np.roll(n[:, 1], -1) < -0.999)
     gate = south & (mid[:, 0] > r.gate[0]) & (mid[:, 0] < r.gate[1])
-    on_track = np.abs(np.abs(mid[:, 0]) - t) < h
-    _ring(b, rows[5], edge, [(r.tracks if on_track[i] else r.road) if gate[i] else r.surface for i in range(m)])
-    corners = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
-    _ring(b, corners * r.half, corners * (r.half + r.margin), [r.verge] * 4)
+    on_track = np.abs(np.abs(mid[:, 0]) - TRACK_OFFSET_M) < TRACK_HALF_WIDTH_M
+    _ring(b, rows[-1], _lift(edge, 0.0), [(r.tracks if on_track[i] else r.road) if gate[i] else r.surface for i in range(m)])
+    _verge(b, r, edge)
     return b.build()

@@ -20,10 +20,11 @@ from ..geometry.portable_math import sincos
 from ..geometry.seeding import stream
 from .assets import Footprint
 from .catalogue.fence import fence_part  # noqa: F401  (generator.blender.build builds the fence from here)
-from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part  # noqa: F401  (and the ground)
+from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part, wet_materials  # noqa: F401  (and the ground)
 from .kinds import all_kinds, kind as kind_named
 from .placement import PlacedAsset, Placer, SiteArea  # noqa: F401  (PlacedAsset: the plan's entries)
 from .planning import SiteState
+from .relief import Relief, plan_terrain
 from .timeline import advance, check_stage
 from .weather import Weather, check_weather, choose_weather
 
@@ -157,6 +158,7 @@ class SitePlan:
     area: SiteArea | None = None  # where props go (inside the road loop, the band along the fence)
     weather: Weather | None = None  # sky, sun and weather (generator/scene/weather.py)
     ground: GroundSurface | None = None  # what the ground is made of (generator/scene/catalogue/ground.py)
+    relief: Relief | None = None  # digs and terrain (generator/scene/relief.py)
 
     def summary(self) -> dict:
         """site.json's plan: seed, parameters, assets per kind, skipped ones, hook height; a
@@ -174,7 +176,8 @@ class SitePlan:
                   if not kind_named(p.asset.kind).shared_streams}
         timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return ({"seed": self.seed, "params": params, "assets": kinds, "skipped": self.skipped,
-                 "hook_height_m": self.hook_height, "weather": self.weather.summary(), "ground": self.ground.summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
+                 "hook_height_m": self.hook_height, "weather": self.weather.summary(), "ground": self.ground.summary(),
+                 "relief": (self.relief or Relief()).summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
 
 
 def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:
@@ -191,6 +194,7 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
     for members in planning_groups(all_kinds()):
         members[0].place.plan(site, members)
     plan = site.plan
+    plan_terrain(plan, GROUND_MARGIN)
     for i, p in enumerate(plan.placed):
         p.uid = i + 1
     if stages > 1:
@@ -237,9 +241,10 @@ def set_camera_volume(plan: SitePlan, site: SiteState) -> None:
 
 
 def site_ground(plan: SitePlan):
-    """The ground's part of ``plan``: its surface, road and verge (generator/scene/ground_layout.py)."""
+    """The ground's part of ``plan``: its surface, road, verge and relief (generator/scene/ground_layout.py)."""
     road_half = plan.params.size / 2 - plan.params.road_inset
-    return ground_part(plan.params.size, plan.ground, road_half, min(ROAD_CORNER_M, road_half * 0.5), plan.road_width, GATE)
+    return ground_part(plan.params.size, plan.ground, road_half, min(ROAD_CORNER_M, road_half * 0.5), plan.road_width, GATE,
+                       plan.relief)
 
 
 def road_loop(half_inner: float, radius: float) -> np.ndarray:

@@ -32,6 +32,9 @@ def draw_map(plan: SitePlan, path: str | Path, pixels_per_metre: float | None = 
         draw.line(road, fill=(240, 240, 240), width=1)
     for a, b in plan.fence_runs:
         draw.line(px([a, b]), fill=(90, 90, 100), width=2)
+    for dig in (plan.relief.digs if plan.relief is not None else ()):
+        draw.polygon(px(dig.outline()), fill=(110, 80, 50), outline=(40, 40, 40))
+
     def colour(placed):
         return CLASS_COLORS.get(kind_named(placed.asset.kind).label, (0, 0, 0))
 

@@ -15,6 +15,7 @@ from ..kinds import AssetKind, register
 from ..ground_layout import GroundRegions, ground_mesh
 from ..materials import SHARED, Material, Pattern, recoloured
 from ..meshes import MeshBuilder
+from ..relief import Relief
 
 GROUND_MARGIN = 20.0  # metres of ground beyond the site's edge on every side (seen from the spawn volume)
 
@@ -67,6 +68,9 @@ ASPHALT = Material("asphalt", (0.05, 0.05, 0.05), 0.8, reflectivity=0.08)
 GRASS = Material("grass", (0.08, 0.12, 0.03), 0.8, 0.0, Pattern(0.3, (0.16, 0.15, 0.05), 0.6, detail=4.0),
                  layers=(Pattern(3.0, (0.04, 0.07, 0.02), 0.6, kind="voronoi"),),
                  reflectivity=0.5, planar=True)  # leaves reflect the near infrared strongly
+SPOIL = soil("spoil", (0.19, 0.13, 0.075), (Pattern(8.0, (0.16, 0.12, 0.07), 0.5, kind="voronoi"),))  # dug subsoil, lumpy
+PAVED = ("asphalt", "concrete")  # roads that do not rut
+RUT_DEPTH_M = 0.04  # tyre tracks on an unpaved road are sunk this deep
 TRACKS_SHADE = 0.55  # tyre tracks: the road's colours times this, and its roughness times 0.75 (compacted)
 
 
@@ -123,9 +127,19 @@ class GroundSurface:
         """The material of the tyre tracks' faces."""
         return tracks_material(self.surface, self.road)
 
+    @property
+    def rut_depth(self) -> float:
+        """Metres the tyre tracks are sunk (0 on a paved road)."""
+        return 0.0 if self.road in PAVED else RUT_DEPTH_M
+
     def summary(self) -> dict:
         """site.json's ``ground``: surface and road kinds."""
         return asdict(self)
+
+
+def wet_materials(ground: Part) -> list[str]:
+    """The materials of the ground part ``ground`` that rain wets (all but the grass's)."""
+    return [m for m in ground.mesh.materials if m != GRASS.name]
 
 
 def check_surface(name: str | None) -> str | None:
@@ -147,26 +161,31 @@ def choose_ground(seed: int, surface: str | None = None) -> GroundSurface:
 
 
 def ground_part(size: float, ground: GroundSurface | None = None, road_half: float | None = None,
-                corner: float = 8.0, width: float = 7.0, gate: tuple[float, float] = (-4.0, 4.0)) -> Part:
-    """The ground: a flat top surface at z = 0 (normals up), ``GROUND_MARGIN`` metres wider
-    than the site of side ``size`` on every side, made of ``ground`` (default: compacted soil
-    with a rutted road). With the road loop's centre line half-side ``road_half`` (its corner
-    radius ``corner``, its ``width``, the gate access's x range ``gate``), its faces follow
-    the regions of :mod:`generator.scene.ground_layout` (road, tyre tracks, site surface,
-    grass beyond the fence); without, it is two triangles of the site's surface. It has no
-    underside and no sides below grade: nothing a camera above it could see (docs/scenes.md)."""
+                corner: float = 8.0, width: float = 7.0, gate: tuple[float, float] = (-4.0, 4.0),
+                relief: Relief | None = None) -> Part:
+    """The ground: a top surface (normals up), ``GROUND_MARGIN`` metres wider than the site of
+    side ``size`` on every side, made of ``ground`` (default: compacted soil with a rutted
+    road). With the road loop's centre line half-side ``road_half`` (its corner radius
+    ``corner``, its ``width``, the gate access's x range ``gate``), its faces follow the
+    regions of :mod:`generator.scene.ground_layout` (road with ruts, tyre tracks, site
+    surface, grass beyond the fence) and ``relief``'s digs and terrain
+    (:mod:`generator.scene.relief`); without, it is two triangles of the site's surface at
+    z = 0. It has no underside and no sides below grade: nothing a camera above it could see
+    (docs/scenes.md)."""
     ground = ground or GroundSurface("compacted-soil", "rutted")
     if road_half is None:
         h = size / 2 + GROUND_MARGIN
         verts = [(-h, -h, 0.0), (h, -h, 0.0), (h, h, 0.0), (-h, h, 0.0)]  # counter-clockwise seen from above
         return Part("Ground", MeshBuilder().add(verts, quads=[(0, 1, 2, 3)], material=ground.material).build())
+    relief = relief or Relief()
     regions = GroundRegions(size / 2, road_half, corner, width, gate, GROUND_MARGIN, ground.material,
-                            ground.road_material, ground.tracks_material, GRASS.name)
+                            ground.road_material, ground.tracks_material, GRASS.name, SPOIL.name, ground.rut_depth,
+                            tuple(relief.digs), relief.terrain)
     return Part("Ground", ground_mesh(regions))
 
 
 register(AssetKind(
     name="Ground", classes=("Ground",), build=ground_part, order=0,
-    materials=tuple(m for _, m in SURFACES.values()) + (ASPHALT, GRASS) + _derived(),
+    materials=tuple(m for _, m in SURFACES.values()) + (ASPHALT, GRASS, SPOIL) + _derived(),
     shared_streams=True,
 ))

@@ -24,15 +24,19 @@ def stadium(rho: float, half_ridge: float, n_arc: int, n_line: int) -> np.ndarra
     return np.array(right + top + left + bottom)
 
 
-def material_pile(rng: np.random.Generator, kind: str) -> Asset:
-    """A sand or gravel pile: a cone or a ridge at a 30-35 degree angle of repose, 1-3 m
-    tall, with a rough surface. Its base is exactly its footprint on the ground."""
-    height = rng.uniform(1.0, 3.0)
-    slope = tan(np.radians(rng.uniform(30, 35)))
-    ridge = rng.uniform(1.0, 4.0) if rng.random() < 0.5 else 0.0
+def material_pile(rng: np.random.Generator, kind: str, material: str | None = None, label: str | None = None,
+                  heights=(1.0, 3.0), repose=(30.0, 35.0), ridges=(1.0, 4.0), rough: float | None = None) -> Asset:
+    """A pile of loose material: a cone or a ridge at its angle of repose (``repose`` degrees),
+    ``heights`` metres tall, with a rough surface (``rough`` metres of noise; sand's and
+    gravel's by default). Its base is exactly its footprint on the ground. ``material``,
+    ``label``: sand's or gravel's and the kind by default."""
+    height = rng.uniform(*heights)
+    slope = tan(np.radians(rng.uniform(*repose)))
+    ridge = rng.uniform(*ridges) if rng.random() < 0.5 else 0.0
     radius = height / slope
     rings, n_arc, n_line = 72, 128, 32 if ridge else 0  # ~5 cm radially, ~10 cm around
-    rough = 0.04 if kind == "SandPile" else 0.09
+    if rough is None:
+        rough = 0.04 if kind == "SandPile" else 0.09
     rhos = np.linspace(radius, 0.04 * radius, rings)  # outer ring first
     verts = []
     for k, rho in enumerate(rhos):
@@ -50,8 +54,8 @@ def material_pile(rng: np.random.Generator, kind: str) -> Asset:
     last = (rings - 1) * n
     tris = np.concatenate([np.stack([last + j, last + j2, np.full(n, top)], 1),  # top cap
                            np.stack([j2, j, np.full(n, bottom)], 1)])  # base on the ground
-    b = MeshBuilder().add(v, quads, tris, material="sand" if kind == "SandPile" else "gravel")
-    return Asset(kind, [Part(kind, b.build())], (2 * radius + ridge + 0.2, 2 * radius + 0.2))
+    b = MeshBuilder().add(v, quads, tris, material=material or ("sand" if kind == "SandPile" else "gravel"))
+    return Asset(kind, [Part(label or kind, b.build())], (2 * radius + ridge + 0.2, 2 * radius + 0.2))
 
 
 def sand_pile(rng: np.random.Generator) -> Asset:
