@@ -133,8 +133,34 @@ def _road_rows(r: GroundRegions, p: np.ndarray, n: np.ndarray, along: np.ndarray
         strips = [r.road, r.tracks, r.road, r.tracks, r.road]
     wander = _wander(along)
     last = len(offsets) - 1
-    rows = [_lift(p + n * (o + (wander if 0 < k < last else np.zeros(len(p))))[:, None], -r.ruts * depth[k]) for k, o in enumerate(offsets)]
+    rows = [_lift(p + n * (o + (wander if 0 < k < last else np.zeros(len(p))))[:, None], 0.0 - r.ruts * depth[k]) for k, o in enumerate(offsets)]
     return rows, strips
+
+
+def _restore_dropped(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Triangles ``tris`` (T, 3) over ``points`` (N, 2) with the border points earcut dropped
+    (those on a straight run) put back: each splits the triangle whose edge it lies on, so
+    the neighbouring regions' vertices along the border are this region's too (no T-junction)."""
+    tris = [tuple(t) for t in tris]
+    used = np.zeros(len(points), dtype=bool)
+    used[np.asarray(tris, dtype=np.int64).ravel()] = True
+    for p in np.flatnonzero(~used):
+        t = np.asarray(tris, dtype=np.int64)
+        for k in range(3):
+            a, b = points[t[:, k]], points[t[:, (k + 1) % 3]]
+            ab, ap = b - a, points[p] - a
+            length2 = (ab * ab).sum(axis=1)
+            along = (ab * ap).sum(axis=1)
+            off = ab[:, 0] * ap[:, 1] - ab[:, 1] * ap[:, 0]
+            on = np.flatnonzero((np.abs(off) <= 1e-9 * length2) & (along > 0) & (along < length2))
+            if len(on):
+                i, j, o = (int(x) for x in t[on[0], [k, (k + 1) % 3, (k + 2) % 3]])
+                tris[on[0]] = (i, int(p), o)
+                tris.append((int(p), j, o))
+                break
+        else:
+            raise ValueError(f"ground layout: border point {points[p]} lies on no triangle's edge")
+    return np.asarray(tris, dtype=np.int64)
 
 
 def _inside(b: MeshBuilder, r: GroundRegions, rim: np.ndarray) -> None:
@@ -143,7 +169,7 @@ def _inside(b: MeshBuilder, r: GroundRegions, rim: np.ndarray) -> None:
     holes = [d.outline() for d in r.digs]
     flat = np.concatenate([rim] + holes)
     ends = np.cumsum([len(rim)] + [len(h) for h in holes]).astype(np.uint32)
-    tris = mapbox_earcut.triangulate_float64(flat, ends).reshape(-1, 3).astype(np.int64)
+    tris = _restore_dropped(flat, mapbox_earcut.triangulate_float64(flat, ends).reshape(-1, 3).astype(np.int64))
     a, b_, c = (flat[tris[:, k]] for k in range(3))
     clockwise = (b_[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b_[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
     tris[clockwise] = tris[clockwise][:, [0, 2, 1]]  # normals up

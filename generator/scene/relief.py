@@ -33,7 +33,7 @@ PIT_CHANCE = 0.75  # share of sites with a basement excavation
 TRENCH_CHANCE = 0.5  # share of sites with a utility trench
 RAMP_WIDTH_M = 4.0
 RAMP_RUN = 4.0  # the ramp's horizontal run per metre of depth (a grade of 1 in 4)
-TERRAIN_FLAT_M = 6.0  # the terrain beyond the fence leaves the working level over this many metres
+TERRAIN_FLAT_M = 8.0  # the terrain beyond the fence leaves the working level over this many metres
 HEAP_GAP_M = 1.5  # a spoil heap's footprint this far from its dig's, at most (beyond the placer's margin)
 
 
@@ -58,8 +58,9 @@ class Dig:
         b = self.batter * self.depth
         return fl, fw, fl + b, fw + b, fl + RAMP_RUN * self.depth, self.ramp / 2
 
-    def _world(self, xy: np.ndarray) -> np.ndarray:
-        """Local (n, 2) -> world: quarter turns by swapping and negating (exact), then the centre."""
+    def to_world(self, xy: np.ndarray) -> np.ndarray:
+        """Points (n, 2) of the dig's own frame (its floor's centre at the origin, its ramp towards
+        +x) in the world: quarter turns by swapping and negating (exact), then the centre."""
         x, y = xy[:, 0], xy[:, 1]
         turned = [(x, y), (-y, x), (-x, -y), (y, -x)][self.turns % 4]
         return np.column_stack(turned) + np.asarray(self.centre, dtype=np.float64)
@@ -71,7 +72,7 @@ class Dig:
 
     def outline(self) -> np.ndarray:
         """(N, 2) the rim on the working level, counter-clockwise seen from above (world)."""
-        return self._world(self._local_outline())
+        return self.to_world(self._local_outline())
 
     def faces(self) -> tuple[np.ndarray, np.ndarray]:
         """(vertices (V, 3), triangles (T, 3)) of the floor, the battered sides and the ramp
@@ -97,14 +98,14 @@ class Dig:
             p = np.array(poly, dtype=np.float64)
             k = sum(len(v) for v in verts)
             tris += [(k, k + i, k + i + 1) for i in range(1, len(p) - 1)]
-            verts.append(np.column_stack([self._world(p[:, :2]), p[:, 2]]))
+            verts.append(np.column_stack([self.to_world(p[:, :2]), p[:, 2]]))
         return np.concatenate(verts), np.array(tris, dtype=np.int64)
 
     def footprint(self) -> Footprint:
         """The ground the dig keeps for itself (its rim's bounding rectangle, world)."""
         _, _, a, c, e, _ = self._sizes()
         x1 = e if self.ramp else a
-        centre = self._world(np.array([[(x1 - a) / 2, 0.0]]))[0]
+        centre = self.to_world(np.array([[(x1 - a) / 2, 0.0]]))[0]
         return Footprint((float(centre[0]), float(centre[1])), (x1 + a, 2 * c), self.turns * np.pi / 2)
 
     def summary(self) -> dict:
@@ -155,7 +156,7 @@ def draw_terrain(rng: np.random.Generator, margin: float) -> Terrain:
         length = float(rng.uniform(20.0, 50.0))
         s, c = sincos(float(rng.uniform(0.0, 2 * np.pi)))
         k = 2 * np.pi / length
-        waves.append((k * c, k * s, float(rng.uniform(0.0, 2 * np.pi)), length * float(rng.uniform(0.008, 0.02))))
+        waves.append((k * c, k * s, float(rng.uniform(0.0, 2 * np.pi)), length * float(rng.uniform(0.005, 0.012))))
     return Terrain(rise, margin, tuple(waves))
 
 
@@ -171,14 +172,32 @@ def draw_dig(rng: np.random.Generator, kind: str) -> Dig:
                float(rng.uniform(1.0, 1.8)), 0.1)
 
 
+def inside_road_loop(points: np.ndarray, road: np.ndarray, clearance: float) -> bool:
+    """True if every point (n, 2) lies inside the closed centre line ``road`` (K, 2, convex,
+    counter-clockwise) at least ``clearance`` metres from it."""
+    a, b = road, np.roll(road, -1, axis=0)
+    ab = b - a
+    for p in points:
+        ap = p - a
+        if np.any(ab[:, 0] * ap[:, 1] - ab[:, 1] * ap[:, 0] <= 0):  # right of an edge: outside
+            return False
+        t = np.clip((ap * ab).sum(axis=1) / (ab * ab).sum(axis=1), 0.0, 1.0)
+        gap = ap - t[:, None] * ab
+        if np.sqrt((gap * gap).sum(axis=1)).min() < clearance:
+            return False
+    return True
+
+
 def _place_dig(dig: Dig, site, rng: np.random.Generator, tries: int = 300) -> Dig | None:
-    """``dig`` at the first free candidate inside the road loop (its footprint then taken), or None."""
+    """``dig`` at the first free candidate inside the road loop (its footprint then taken), or
+    None; its rim stays a metre clear of the road, rounded corners included."""
     inner = site.area.inner
+    clearance = site.plan.road_width / 2 + 1.0
     for _ in range(tries):
         x, y = rng.uniform(-inner, inner, 2)
         placed = Dig(dig.kind, (float(x), float(y)), int(rng.integers(4)), dig.floor, dig.depth, dig.batter, dig.ramp)
         fp = placed.footprint()
-        if site.placer.fits(fp):
+        if site.placer.fits(fp) and inside_road_loop(placed.outline(), site.plan.road, clearance):
             site.placer.taken.append(fp)
             site.plan.reserved.append(fp)
             return placed
