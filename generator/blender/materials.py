@@ -86,8 +86,15 @@ def _add_layers(tree, layers, colour, rng: np.random.Generator, planar: bool = F
 
 
 def _layer_factor(nodes, links, vector, layer, rng: np.random.Generator, planar: bool = False):
-    """The layer's texture at ``vector`` as a factor in [0, 1] (an output socket)."""
+    """The layer's texture at ``vector`` (divided by its ``stretch`` along each axis) as a
+    factor in [0, 1] (an output socket)."""
     scale = layer.scale * float(rng.uniform(0.8, 1.25))
+    if tuple(layer.stretch) != (1.0, 1.0, 1.0):
+        squash = nodes.new("ShaderNodeVectorMath")
+        squash.operation = "MULTIPLY"
+        links.new(vector, squash.inputs[0])
+        squash.inputs[1].default_value = tuple(1.0 / k for k in layer.stretch)
+        vector = squash.outputs["Vector"]
     return _TEXTURES[layer.kind](nodes, links, vector, layer, scale, planar)
 
 

@@ -23,7 +23,9 @@ class Pattern:
     a running bond on vertical faces, ``scale`` courses per metre of height, units ``aspect``
     times as long as a course is high, joints ``joint`` of a course thick: brick mortar,
     block joints, formwork panel joints) of ``scale`` features per metre (in the object's own
-    coordinates), blending towards ``colour`` (linear RGB) with weight up to ``strength``.
+    coordinates), blending towards ``colour`` (linear RGB) with weight up to ``strength``;
+    ``stretch``: its features that many times longer along the object's x, y and z (wood grain
+    along a beam, dirt streaks running down a painted wall, scratches).
     Colour only: the geometry, and so every ground-truth output, is unchanged."""
 
     scale: float
@@ -33,10 +35,13 @@ class Pattern:
     detail: float = 6.0
     aspect: float = 3.0
     joint: float = 0.13
+    stretch: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self):
         if self.kind not in PATTERN_KINDS:
             raise ValueError(f"Pattern kind {self.kind!r} is unknown; choose one of {', '.join(PATTERN_KINDS)}")
+        if len(self.stretch) != 3 or min(self.stretch) <= 0:
+            raise ValueError(f"Pattern stretch must be three positive factors (x, y, z), got {self.stretch!r}")
 
 
 PATTERN_KINDS = ("noise", "voronoi", "courses")
@@ -104,6 +109,13 @@ CONCRETE_LAYERS = (Pattern(0.6, (0.26, 0.25, 0.22), 0.6, detail=4.0),
                    Pattern(12.0, (0.62, 0.61, 0.57), 0.45, detail=2.0),
                    Pattern(1 / 1.2, (0.3, 0.29, 0.27), 0.5, kind="courses", aspect=2.0, joint=0.012))
 
+# weathering of painted steel (containers, skips, cranes, machinery): dirt streaks running
+# down (stretched 8x along z) and fine scratches (stretched 12x along x)
+STREAKS = Pattern(2.5, (0.07, 0.06, 0.045), 0.45, detail=3.0, stretch=(1.0, 1.0, 8.0))
+SCRATCHES = Pattern(25.0, (0.55, 0.53, 0.5), 0.3, kind="voronoi", stretch=(12.0, 1.0, 1.0))
+# timber: grain along the object's x (beams, boards and planks are built along x)
+GRAIN = (0.3, 0.19, 0.09), 0.45  # colour of the late wood, weight
+
 DEFAULT = "default"  # the material of faces whose material nobody declares
 
 SHARED: tuple[Material, ...] = (
@@ -115,10 +127,12 @@ SHARED: tuple[Material, ...] = (
     Material("rebar", (0.25, 0.12, 0.06), 0.7, 0.6, Pattern(20.0, (0.4, 0.18, 0.07), 0.6)),
     Material("steel_galvanized", (0.55, 0.56, 0.57), 0.45, 1.0, Pattern(12.0, (0.4, 0.4, 0.41), 0.3),
              reflectivity=0.45),  # bare metal: mostly specular, little comes back off-axis
-    Material("steel_painted", (0.2, 0.2, 0.21), 0.5, 0.3),
+    Material("steel_painted", (0.2, 0.2, 0.21), 0.5, 0.3, layers=(STREAKS,)),
     Material("steel_dark", (0.05, 0.05, 0.05), 0.6, 0.4, Pattern(5.0, (0.12, 0.1, 0.08), 0.4)),
-    Material("wood", (0.45, 0.3, 0.15), 0.75, 0.0, Pattern(18.0, (0.32, 0.2, 0.1), 0.5)),
-    Material("wood_dark", (0.25, 0.16, 0.08), 0.8, 0.0, Pattern(18.0, (0.15, 0.1, 0.05), 0.5)),
+    Material("wood", (0.45, 0.3, 0.15), 0.75, 0.0, Pattern(18.0, (0.32, 0.2, 0.1), 0.5),
+             layers=(Pattern(40.0, GRAIN[0], GRAIN[1], detail=3.0, stretch=(15.0, 1.0, 1.0)),)),
+    Material("wood_dark", (0.25, 0.16, 0.08), 0.8, 0.0, Pattern(18.0, (0.15, 0.1, 0.05), 0.5),
+             layers=(Pattern(40.0, tuple(c * 0.55 for c in GRAIN[0]), GRAIN[1], detail=3.0, stretch=(15.0, 1.0, 1.0)),)),
     Material("glass", (0.02, 0.03, 0.04), 0.05, reflectivity=0.02),  # transmits and mirrors: next to no diffuse return
     Material("rubber", (0.02, 0.02, 0.02), 0.9, reflectivity=0.05),  # carbon black absorbs the near infrared
     Material("plastic_white", (0.8, 0.8, 0.8), 0.4),

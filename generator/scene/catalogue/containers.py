@@ -7,7 +7,7 @@ import numpy as np
 
 from ..assets import Asset, Part
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import SCRATCHES, STREAKS, Material, Pattern
 from ..meshes import MeshBuilder
 from ..planning import Mix
 from ..timeline import Arrives
@@ -65,11 +65,11 @@ RUST = Pattern(4.0, (0.3, 0.15, 0.07), 0.3)
 
 register(AssetKind(
     name="Container", classes=("Container",), build=container_stack, place=Mix(weight=3, band=True), order=50,
-    materials=(Material("container_blue", (0.04, 0.14, 0.4), 0.55, 0.3, RUST),
-               Material("container_red", (0.45, 0.05, 0.03), 0.55, 0.3, RUST),
-               Material("container_green", (0.05, 0.25, 0.1), 0.55, 0.3, RUST),
-               Material("container_grey", (0.3, 0.31, 0.32), 0.55, 0.3, RUST),
-               Material("container_orange", (0.7, 0.28, 0.03), 0.55, 0.3, RUST),
-               Material("container_white", (0.7, 0.7, 0.68), 0.55, 0.3, RUST)),
+    materials=(Material("container_blue", (0.04, 0.14, 0.4), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES)),
+               Material("container_red", (0.45, 0.05, 0.03), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES)),
+               Material("container_green", (0.05, 0.25, 0.1), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES)),
+               Material("container_grey", (0.3, 0.31, 0.32), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES)),
+               Material("container_orange", (0.7, 0.28, 0.03), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES)),
+               Material("container_white", (0.7, 0.7, 0.68), 0.55, 0.3, RUST, layers=(STREAKS, SCRATCHES))),
     stage=Arrives(p=0.5, slot=999, band=True, stream="container"), shared_streams=True,
 ))

@@ -12,7 +12,7 @@ from ...geometry.portable_math import sincos, vector_norm
 from ...geometry.seeding import stream
 from ..assets import Asset, Footprint, Keyframes, Part
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import STREAKS, Material, Pattern
 from ..meshes import MeshBuilder
 from ..planning import Custom
 from ..timeline import Rebuilt
@@ -230,7 +230,7 @@ def plan_cranes(site, kind: AssetKind) -> None:
 register(AssetKind(
     name="Crane", classes=("Crane",), build=tower_crane, place=Custom(plan_cranes), order=20,
     materials=(Material("steel_cable", (0.1, 0.1, 0.1), 0.4, 1.0),
-               Material("crane_paint", (0.8, 0.55, 0.02), 0.45, 0.2, Pattern(6.0, (0.5, 0.35, 0.05), 0.2)),
+               Material("crane_paint", (0.8, 0.55, 0.02), 0.45, 0.2, Pattern(6.0, (0.5, 0.35, 0.05), 0.2), layers=(STREAKS,)),
                Material("crane_hook", (0.8, 0.1, 0.05), 0.4, 0.2)),
     motion="slews at 0.3-0.9 turns a minute; the trolley travels the jib at 1 m/s between seeded stops",
     stage=Rebuilt(f"turns to a new heading at a stage with probability {P_SLEW}"),

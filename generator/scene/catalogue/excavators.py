@@ -8,7 +8,7 @@ import numpy as np
 from ...geometry.camera import matmul_exact, rows_times
 from ..assets import Asset, Keyframes, Part
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import STREAKS, Material, Pattern
 from ..meshes import MeshBuilder, rotation_y
 from ..planning import Scatter
 from ..timeline import Relocates
@@ -97,7 +97,7 @@ def excavator(rng: np.random.Generator, frames: int, fps: float) -> Asset:
 register(AssetKind(
     name="Excavator", classes=("Excavator",), build=excavator, place=Scatter(follow_layout=False, tries=300), order=30,
     count_param="excavators", counts={"small": (0, 1), "medium": (1, 1), "large": (1, 2)},
-    materials=(Material("excavator_paint", (0.85, 0.55, 0.02), 0.4, 0.2, Pattern(5.0, (0.35, 0.3, 0.2), 0.25)),),
+    materials=(Material("excavator_paint", (0.85, 0.55, 0.02), 0.4, 0.2, Pattern(5.0, (0.35, 0.3, 0.2), 0.25), layers=(STREAKS,)),),
     motion="swings its upper body and cycles boom, arm and bucket, the bucket kept 0.3 m above the ground",
     stage=Relocates(P_MOVES, near=True), shared_streams=True,
 ))

@@ -7,7 +7,7 @@ import numpy as np
 from ...geometry.portable_math import vector_norm
 from ..assets import Asset, Part
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import STREAKS, Material, Pattern
 from ..meshes import MeshBuilder
 from ..planning import Mix
 
@@ -36,7 +36,7 @@ def skip(rng: np.random.Generator) -> Asset:
 
 register(AssetKind(
     name="Skip", classes=("Skip",), build=skip, place=Mix(weight=1.5), order=61,
-    materials=(Material("skip_paint", (0.7, 0.5, 0.02), 0.6, 0.2, Pattern(5.0, (0.3, 0.15, 0.05), 0.5)),
+    materials=(Material("skip_paint", (0.7, 0.5, 0.02), 0.6, 0.2, Pattern(5.0, (0.3, 0.15, 0.05), 0.5), layers=(STREAKS,)),
                Material("rubble", (0.3, 0.27, 0.24), 0.95, 0.0, Pattern(30.0, (0.15, 0.12, 0.1), 0.6))),
     shared_streams=True,
 ))

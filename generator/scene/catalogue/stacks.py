@@ -10,7 +10,7 @@ import numpy as np
 from ...geometry.portable_math import cos
 from ..assets import Asset, Part
 from ..kinds import AssetKind, register
-from ..materials import Material, Pattern
+from ..materials import STREAKS, Material, Pattern
 from ..meshes import MeshBuilder, rotation_x
 from ..planning import Mix
 from ..timeline import MATERIAL_STOCK
@@ -113,7 +113,7 @@ register(AssetKind(
 ))
 register(AssetKind(
     name="PipeStack", classes=("PipeStack",), build=pipe_stack, place=Mix(weight=1.5), order=55,
-    materials=(Material("steel_rust", (0.3, 0.14, 0.06), 0.75, 0.4, Pattern(6.0, (0.15, 0.12, 0.1), 0.6)),),
+    materials=(Material("steel_rust", (0.3, 0.14, 0.06), 0.75, 0.4, Pattern(6.0, (0.15, 0.12, 0.1), 0.6), layers=(STREAKS,)),),
     stage=MATERIAL_STOCK, shared_streams=True,
 ))
 register(AssetKind(
