@@ -6,7 +6,8 @@
   procedural clouds (fractal noise on the plane 1 km up, seen along each view direction) for
   ``partly-cloudy``; the CIE overcast sky with faint cloud texture for ``overcast``.
 - Wet ground: the ground material darkens and turns glossy by ``wetness``, and puddles (low
-  fractal noise over the ground, about 10 m across) are dark mirrors.
+  fractal noise over the ground's level faces, about 10 m across) are mirrors through which
+  the soil shows, a third as bright.
 - Fog: recorded in the scene (:data:`FOG_PROPERTY`, the extinction per metre and the fog's
   colour) for the renderer, which mixes each pixel with the fog's colour by the
   transmittance exp(-extinction x distance) along its ray (generator/blender/render.py).
@@ -167,7 +168,8 @@ def _overcast(nodes, links):
 def wet_ground(material, wetness: float) -> None:
     """Darken ``material`` and make it glossy by ``wetness`` (0-1), with puddles: a low fractal
     noise over the object's coordinates (features about 10 m across) above a threshold that
-    falls with wetness makes water, nearly black and mirror-smooth."""
+    falls with wetness makes water on the level faces (normals within about 14 degrees of up):
+    mirror-smooth, the soil showing through a third as bright (shallow, muddy)."""
     nodes, links = material.node_tree.nodes, material.node_tree.links
     bsdf = nodes["Principled BSDF"]
     coords = nodes.new("ShaderNodeTexCoord")
@@ -180,6 +182,13 @@ def wet_ground(material, wetness: float) -> None:
     start = 0.62 - 0.1 * wetness
     puddle.inputs["From Min"].default_value, puddle.inputs["From Max"].default_value = start, start + 0.02
     links.new(noise.outputs["Fac"], puddle.inputs["Value"])
+    geometry = nodes.new("ShaderNodeNewGeometry")  # water lies on level ground only: not on a heap or a pit's side
+    up = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(geometry.outputs["Normal"], up.inputs["Vector"])
+    level = nodes.new("ShaderNodeMapRange")
+    level.inputs["From Min"].default_value, level.inputs["From Max"].default_value = 0.97, 0.995
+    links.new(up.outputs["Z"], level.inputs["Value"])
+    pooled = _math(nodes, links, "MULTIPLY", puddle.outputs["Result"], level.outputs["Result"])
     base = bsdf.inputs["Base Color"]
     darker = nodes.new("ShaderNodeMix")  # wet soil: about half as bright
     darker.data_type = "RGBA"
@@ -191,16 +200,17 @@ def wet_ground(material, wetness: float) -> None:
         darker.inputs["A"].default_value = base.default_value
     shade = 1.0 - 0.5 * wetness
     darker.inputs["B"].default_value = (shade, shade, shade, 1.0)
-    water = nodes.new("ShaderNodeMix")
+    water = nodes.new("ShaderNodeMix")  # shallow muddy water: the soil shows through, a third as bright
     water.data_type = "RGBA"
-    links.new(puddle.outputs["Result"], water.inputs["Factor"])
+    water.blend_type = "MULTIPLY"
+    links.new(pooled, water.inputs["Factor"])
     links.new(darker.outputs["Result"], water.inputs["A"])
-    water.inputs["B"].default_value = (0.02, 0.021, 0.022, 1.0)
+    water.inputs["B"].default_value = (0.33, 0.34, 0.35, 1.0)
     links.new(water.outputs["Result"], base)
     rough = bsdf.inputs["Roughness"]
     dry = float(rough.default_value)
     smooth = nodes.new("ShaderNodeMapRange")  # damp ground loses most of its roughness, puddles all
     smooth.inputs["To Min"].default_value = float(np.clip(dry * (1.0 - 0.6 * wetness), 0.05, 1.0))
     smooth.inputs["To Max"].default_value = 0.02
-    links.new(puddle.outputs["Result"], smooth.inputs["Value"])
+    links.new(pooled, smooth.inputs["Value"])
     links.new(smooth.outputs["Result"], rough)
