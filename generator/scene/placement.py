@@ -154,7 +154,7 @@ def band_candidates(rng: np.random.Generator, lo: float, hi: float, n: int):
         yield (x, y), yaw
 
 
-def near_then_anywhere(rng: np.random.Generator, position, inner: float, n: int = 150):
+def anywhere_then_near(rng: np.random.Generator, position, inner: float, n: int = 150):
     """Candidate ((x, y), yaw): ``n`` anywhere inside the road loop, then ``n`` within a
     few metres of ``position`` (a crowded site has room for a big machine near its old spot)."""
     for _ in range(n):

@@ -29,7 +29,7 @@ from ..checks import check_integer
 from ..geometry.seeding import stream
 from .assets import Asset
 from .kinds import all_kinds, kind as kind_named
-from .placement import PlacedAsset, Placer, SiteArea, band_candidates, near_then_anywhere
+from .placement import PlacedAsset, Placer, SiteArea, band_candidates, anywhere_then_near
 
 MAX_STAGES = 16
 DELIVERIES = (1, 2)  # new material assets per stage (inclusive)
@@ -139,7 +139,7 @@ class Relocates(StageRule):
     def change(self, step, placed, u, move):
         if u < self.p:
             if self.near:
-                step.relocate(placed, near_then_anywhere(move, placed.position, step.area.inner))
+                step.relocate(placed, anywhere_then_near(move, placed.position, step.area.inner))
             else:
                 step.relocate(placed, step.area.inside(move, 60))
 
