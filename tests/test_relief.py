@@ -62,7 +62,9 @@ def test_the_ground_is_watertight_and_consistently_turned_around_its_relief(plan
 
 
 def test_a_ray_down_meets_the_pit_floor_the_ramp_and_the_trench_at_their_depths(plans):
-    import open3d as o3d
+    from generator.geometry.o3d import import_open3d
+
+    o3d = import_open3d()
 
     for kind in ("pit", "trench"):
         plan = _with_relief(plans, kind)
