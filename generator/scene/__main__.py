@@ -1,4 +1,5 @@
-"""``python -m generator.scene --seed 0 --preset medium --out DIR``: build and save one site."""
+"""``python -m generator.scene --seed 0 --preset medium --out DIR``: build and save one site;
+``--survey 0-99 --out DIR``: a diversity report of many seeds' plans (generator/scene/survey.py)."""
 
 from __future__ import annotations
 
@@ -17,8 +18,10 @@ from .weather import WEATHERS
 
 def main(argv=None) -> int:
     p = OneLineParser(prog="python -m generator.scene", description="Build one procedural construction site and save it.")
-    p.add_argument("--seed", type=int_at_least(0, "seed", MAX_SEED), required=True,
-                   help="site seed, an integer from 0 to 2**63-1")
+    p.add_argument("--seed", type=int_at_least(0, "seed", MAX_SEED),
+                   help="site seed, an integer from 0 to 2**63-1 (required unless --survey)")
+    p.add_argument("--survey", metavar="A-B", help="plan seeds A to B (nothing rendered) and write a diversity report, "
+                   "survey.json and survey.md, into --out (docs/scenes.md, 'Survey')")
     p.add_argument("--preset", default="medium", choices=sorted(PRESETS), help="site preset (default: medium)")
     p.add_argument("--out", type=out_folder, default=Path("site"), help="output folder (default: ./site)")
     p.add_argument("--size", type=float, help="site side in metres, up to 1000 and at least small 42, medium 51, large 53 (default: the preset's)")
@@ -36,6 +39,8 @@ def main(argv=None) -> int:
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
     check_out_folder(p, args.out)
+    if args.seed is None and args.survey is None:
+        p.error("give --seed N (one site) or --survey A-B (a report of many)")
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
     overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather", "ground") if getattr(args, k) is not None}
@@ -48,6 +53,8 @@ def main(argv=None) -> int:
     except WriteRefused as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.survey is not None:
+        return _survey(p, args, overrides, claimed)
     t0 = time.perf_counter()
     try:
         result = build_site(args.seed, args.preset, args.out, preview=not args.no_preview, stage=args.stage,
@@ -62,6 +69,25 @@ def main(argv=None) -> int:
     info = result.info
     print(f"seed {args.seed} ({args.preset}): {info['objects']} objects, {info['triangles']:,} triangles, "
           f"built in {time.perf_counter() - t0:.1f} s -> {result.blend}")
+    return 0
+
+
+def _survey(p, args, overrides: dict, claimed) -> int:
+    """``--survey``: plan the seeds, write the report, print the totals' headline."""
+    from tqdm import tqdm
+
+    from .survey import parse_seeds, write_survey
+
+    try:
+        seeds = parse_seeds(args.survey)
+        total = write_survey(seeds, args.out, args.preset, lambda s: tqdm(s, desc="planning", unit="seed", file=sys.stderr),
+                             **overrides)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    claimed.seal()
+    print(f"{total['seeds']} seeds ({args.preset}): {len(total['kinds'])} asset kinds, "
+          f"{len(total['surface'])} ground surfaces, {len(total['weather'])} weathers -> {args.out / 'survey.md'}")
     return 0
 
 

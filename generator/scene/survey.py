@@ -1,0 +1,96 @@
+"""A diversity report of many seeds' site plans (bpy-free, nothing rendered):
+``python -m generator.scene --survey 0-99 --out DIR`` writes ``DIR/survey.json`` (per seed and
+in total) and ``DIR/survey.md`` (the totals as tables). docs/scenes.md, "Survey".
+
+Per seed: its buildings (floors built and planned), the asset kinds and how many of each,
+the objects per taxonomy class (parts of the plan's assets), the ground's surface and road,
+the relief's digs, the weather and the sun's elevation, and what found no room. In total:
+for each of these, on how many seeds each value occurs (and, for the kinds and classes, how
+many there are in all).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import Counter
+from pathlib import Path
+
+from .site import plan_site, site_params
+
+MAX_SURVEY = 10_000  # seeds in one report
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``"A-B"`` (inclusive) or ``"A"``: the seeds of a survey; ValueError naming the form."""
+    m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", text)
+    if m is None:
+        raise ValueError(f"--survey takes a seed or a range of seeds like 0-99, got {text!r}")
+    first, last = int(m.group(1)), int(m.group(2) or m.group(1))
+    if last < first:
+        raise ValueError(f"--survey {text}: the range ends before it starts; write it low-high, e.g. {last}-{first}")
+    if last - first + 1 > MAX_SURVEY:
+        raise ValueError(f"--survey {text}: {last - first + 1} seeds; survey at most {MAX_SURVEY} at once")
+    return list(range(first, last + 1))
+
+
+def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
+    """What the plan of ``seed`` holds (module docstring), JSON-ready."""
+    plan = plan_site(seed, site_params(preset, **overrides))
+    kinds = Counter(p.asset.kind for p in plan.placed)
+    classes = Counter(part.label for p in plan.placed for part in p.asset.parts)
+    buildings = [{"floors_built": p.asset.info.get("floors_built"), "floors_planned": p.asset.info.get("floors_planned")}
+                 for p in plan.placed if p.asset.kind == "Building"]
+    return {"seed": seed, "buildings": buildings, "kinds": dict(sorted(kinds.items())),
+            "objects_per_class": dict(sorted(classes.items())), "ground": plan.ground.summary(),
+            "digs": [d.kind for d in plan.relief.digs], "weather": plan.weather.name,
+            "sun_elevation_deg": round(plan.weather.sun_elevation_deg, 2), "skipped": dict(sorted(plan.skipped.items()))}
+
+
+def totals(records: list[dict]) -> dict:
+    """Seeds per value of each categorical field, and per kind and class: seeds holding one, count in all."""
+    def seeds_with(values):
+        return dict(sorted(Counter(values).items(), key=lambda kv: (-kv[1], str(kv[0]))))
+
+    out = {"seeds": len(records),
+           "surface": seeds_with(r["ground"]["surface"] for r in records),
+           "road": seeds_with(r["ground"]["road"] for r in records),
+           "weather": seeds_with(r["weather"] for r in records),
+           "digs": seeds_with(d for r in records for d in sorted(set(r["digs"]))),
+           "buildings_per_site": seeds_with(len(r["buildings"]) for r in records)}
+    for field in ("kinds", "objects_per_class"):
+        out[field] = {name: {"seeds": sum(1 for r in records if r[field].get(name)),
+                             "total": sum(r[field].get(name, 0) for r in records)}
+                      for name in sorted({n for r in records for n in r[field]})}
+    sun = sorted(r["sun_elevation_deg"] for r in records)
+    out["sun_elevation_deg"] = {"min": sun[0], "median": sun[len(sun) // 2], "max": sun[-1]}
+    return out
+
+
+def markdown(total: dict, preset: str) -> str:
+    """The totals as Markdown tables."""
+    n = total["seeds"]
+    lines = [f"# Survey of {n} seeds ({preset})", ""]
+    for field in ("surface", "road", "weather", "digs", "buildings_per_site"):
+        lines += [f"| {field} | seeds | share |", "|---|---|---|"]
+        lines += [f"| {value} | {count} | {count / n:.0%} |" for value, count in total[field].items()]
+        lines.append("")
+    for field in ("kinds", "objects_per_class"):
+        lines += [f"| {field} | seeds holding one | share | in all |", "|---|---|---|---|"]
+        lines += [f"| {name} | {v['seeds']} | {v['seeds'] / n:.0%} | {v['total']} |" for name, v in total[field].items()]
+        lines.append("")
+    s = total["sun_elevation_deg"]
+    lines.append(f"Sun elevation: {s['min']}-{s['max']} degrees, median {s['median']}.")
+    return "\n".join(lines) + "\n"
+
+
+def write_survey(seeds: list[int], out: Path, preset: str = "medium", progress=None, **overrides) -> dict:
+    """Plan every seed, write ``survey.json`` and ``survey.md`` into ``out``; the totals.
+    ``progress``: wraps the seeds' iteration (a tqdm), if given."""
+    records = [seed_record(s, preset, **overrides) for s in (progress(seeds) if progress else seeds)]
+    total = totals(records)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "survey.json").write_text(json.dumps({"preset": preset, "overrides": overrides, "totals": total,
+                                                 "seeds": records}, indent=1) + "\n")
+    (out / "survey.md").write_text(markdown(total, preset))
+    return total
