@@ -3,7 +3,8 @@
 in total) and ``DIR/survey.md`` (the totals as tables). docs/scenes.md, "Survey".
 
 Per seed: its buildings (floors built and planned), the asset kinds and how many of each,
-the objects per taxonomy class (parts of the plan's assets), the ground's surface and road,
+the objects per taxonomy class (the plan's parts with a mesh: the site's Blender objects but
+the ground and fence), the ground's surface and road,
 the relief's digs, the weather and the sun's elevation, and what found no room. In total:
 for each of these, on how many seeds each value occurs (and, for the kinds and classes, how
 many there are in all).
@@ -38,7 +39,7 @@ def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
     """What the plan of ``seed`` holds (module docstring), JSON-ready."""
     plan = plan_site(seed, site_params(preset, **overrides))
     kinds = Counter(p.asset.kind for p in plan.placed)
-    classes = Counter(part.label for p in plan.placed for part in p.asset.parts)
+    classes = Counter(part.label for p in plan.placed for part in p.asset.parts if part.mesh is not None)
     buildings = [{"floors_built": p.asset.info.get("floors_built"), "floors_planned": p.asset.info.get("floors_planned")}
                  for p in plan.placed if p.asset.kind == "Building"]
     return {"seed": seed, "buildings": buildings, "kinds": dict(sorted(kinds.items())),
