@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, assert_refused
-from generator.scene.weather import SUN_ELEVATION_DEG, WEATHERS, choose_weather
+from generator.scene.weather import SUN_ELEVATION_DEG, WEATHERS, WET_EXPOSURE_EV, choose_weather
 
 
 def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_rest():
@@ -21,8 +21,11 @@ def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_r
         w = choose_weather(12, name)
         assert w.name == name and w.sun_azimuth_deg == a.sun_azimuth_deg  # the same stream, the same draws
         assert (w.fog_visibility_m is not None) == (name == "fog") and (w.wetness > 0) == (name == "after-rain")
-        assert 0.0 <= w.exposure_ev <= 2.0 and w.sun_strength > 0
+        assert 0.0 <= w.exposure_ev <= 2.0 + (WET_EXPOSURE_EV if w.wetness else 0.0) and w.sun_strength > 0
         assert w.fog_extinction_per_m == (0.0 if name != "fog" else pytest.approx(3.912 / w.fog_visibility_m))
+    wet, dry = (next(choose_weather(s, n) for s in range(50) if choose_weather(s, "after-rain").sky == "overcast")
+                for n in ("after-rain", "overcast"))
+    assert wet.exposure_ev == dry.exposure_ev + WET_EXPOSURE_EV  # the same light; wet ground reflects less
     with pytest.raises(ValueError, match="^unknown weather 'rainy'; choose one of clear, hazy"):
         choose_weather(12, "rainy")
 

@@ -104,7 +104,10 @@ def choose_weather(seed: int, name: str | None = None) -> Weather:
     fog = float(rng.uniform(*FOG_VISIBILITY_M)) if name == "fog" else None
     wet = float(rng.uniform(0.6, 1.0)) if name == "after-rain" else 0.0
     return Weather(name, sky, elevation, azimuth, sun, sun_angle, turbidity, sky_strength, cover, fog, wet,
-                   exposure_for(sky, elevation, sun))
+                   exposure_for(sky, elevation, sun) + (WET_EXPOSURE_EV if wet else 0.0))
+
+
+WET_EXPOSURE_EV = 2.0 / 3.0  # wet ground reflects about half the light: automatic exposure opens up 2/3 stop more
 
 
 def exposure_for(sky: str, elevation_deg: float, sun_strength: float) -> float:
