@@ -73,7 +73,7 @@ def ground_height(parts: list[MeshPart]) -> float | None:
         return None
     h, a = np.concatenate(heights), np.concatenate(areas)
     bins = np.round(h / CONTACT_TOLERANCE).astype(np.int64)
-    values, inverse = np.unique(bins, return_inverse=True)
+    _, inverse = np.unique(bins, return_inverse=True)
     best = inverse == int(np.argmax(np.bincount(inverse, weights=a)))
     exact, where = np.unique(h[best], return_inverse=True)  # in that band, the height holding the most area
     return float(exact[int(np.argmax(np.bincount(where, weights=a[best])))])

@@ -34,7 +34,7 @@ TRENCH_CHANCE = 0.5  # share of sites with a utility trench
 RAMP_WIDTH_M = 4.0
 RAMP_RUN = 4.0  # the ramp's horizontal run per metre of depth (a grade of 1 in 4)
 TERRAIN_FLAT_M = 8.0  # the terrain beyond the fence leaves the working level over this many metres
-HEAP_GAP_M = 1.5  # a spoil heap's footprint this far from its dig's, at most (beyond the placer's margin)
+HEAP_REACH_M = (2.0, 7.5)  # a spoil heap's candidate centres: this far beyond its dig's half-length
 
 
 @dataclass(frozen=True)
@@ -210,7 +210,7 @@ def _heap_candidates(dig: Dig, rng: np.random.Generator, n: int = 80):
     reach = max(fp.size) / 2
     for _ in range(n):
         s, c = sincos(float(rng.uniform(0.0, 2 * np.pi)))
-        r = reach + float(rng.uniform(2.0, 2.0 + HEAP_GAP_M + 4.0))
+        r = reach + float(rng.uniform(*HEAP_REACH_M))
         yield (fp.center[0] + r * c, fp.center[1] + r * s), float(rng.uniform(0.0, np.pi))
 
 

@@ -36,16 +36,18 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
-    """What the plan of ``seed`` holds (module docstring), JSON-ready."""
+    """What the plan of ``seed`` holds (module docstring), JSON-ready: site.json's summary of
+    the plan, plus the objects per class and each building's floors."""
     plan = plan_site(seed, site_params(preset, **overrides))
-    kinds = Counter(p.asset.kind for p in plan.placed)
+    summary = plan.summary()
     classes = Counter(part.label for p in plan.placed for part in p.asset.parts if part.mesh is not None)
     buildings = [{"floors_built": p.asset.info.get("floors_built"), "floors_planned": p.asset.info.get("floors_planned")}
                  for p in plan.placed if p.asset.kind == "Building"]
-    return {"seed": seed, "buildings": buildings, "kinds": dict(sorted(kinds.items())),
-            "objects_per_class": dict(sorted(classes.items())), "ground": plan.ground.summary(),
-            "digs": [d.kind for d in plan.relief.digs], "weather": plan.weather.name,
-            "sun_elevation_deg": round(plan.weather.sun_elevation_deg, 2), "skipped": dict(sorted(plan.skipped.items()))}
+    return {"seed": seed, "buildings": buildings, "kinds": dict(sorted(summary["assets"].items())),
+            "objects_per_class": dict(sorted(classes.items())), "ground": summary["ground"],
+            "digs": [d["kind"] for d in summary["relief"]["digs"]], "weather": summary["weather"]["name"],
+            "sun_elevation_deg": round(summary["weather"]["sun_elevation_deg"], 2),
+            "skipped": dict(sorted(summary["skipped"].items()))}
 
 
 def totals(records: list[dict]) -> dict:
