@@ -210,7 +210,7 @@ def wet_ground(material, wetness: float) -> None:
     rough = bsdf.inputs["Roughness"]
     dry = float(rough.default_value)
     smooth = nodes.new("ShaderNodeMapRange")  # damp ground loses most of its roughness, puddles all
-    smooth.inputs["To Min"].default_value = float(np.clip(dry * (1.0 - 0.6 * wetness), 0.05, 1.0))
+    smooth.inputs["To Min"].default_value = float(np.clip(dry * (1.0 - 0.4 * wetness), 0.05, 1.0))
     smooth.inputs["To Max"].default_value = 0.02
     links.new(pooled, smooth.inputs["Value"])
     links.new(smooth.outputs["Result"], rough)

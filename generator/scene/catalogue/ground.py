@@ -48,7 +48,9 @@ def soil(name: str, colour: tuple[float, float, float], extra: tuple[Pattern, ..
 # name: (weight per seed, material)
 SURFACES: dict[str, tuple[float, Material]] = {
     "compacted-soil": (0.25, soil("compacted-soil", (0.23, 0.18, 0.12))),
-    "mud": (0.2, soil("mud", (0.13, 0.1, 0.07), (Pattern(12.0, (0.05, 0.04, 0.03), 0.4, kind="voronoi"),),  # wet clods
+    "mud": (0.2, soil("mud", (0.15, 0.115, 0.08), (Pattern(2.5, (0.36, 0.28, 0.2), 0.65, kind="voronoi"),  # drying crust
+                                                    Pattern(12.0, (0.3, 0.23, 0.16), 0.6, kind="voronoi"),  # clods
+                                                    Pattern(4.0, (0.05, 0.04, 0.03), 0.5, kind="voronoi")),  # wet hollows
                       roughness_range=(0.45, 0.8), specular_range=(0.2, 0.4))),
     # crushed-stone hardstanding: grey, with stones of several centimetres
     "gravel": (0.2, soil("gravel", (0.16, 0.155, 0.145))),
