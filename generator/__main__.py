@@ -22,6 +22,7 @@ from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_l
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
+from .scene.building_types import all_types
 from .scene.catalogue.ground import SURFACES
 from .scene.weather import WEATHERS
 from exporters.modalities import MODALITIES
@@ -55,6 +56,10 @@ def _add_site_arguments(p) -> None:
                         "docs/scenes.md)")
     p.add_argument("--ground", choices=SURFACES, default=None,
                    help="the ground's surface on every seed: " + ", ".join(SURFACES) + " (default: drawn per seed; "
+                        "docs/scenes.md)")
+    types = [t.name for t in all_types()]
+    p.add_argument("--building-type", choices=types, default=None,
+                   help="the type of every building: " + ", ".join(types) + " (default: drawn per building; "
                         "docs/scenes.md)")
 
 
@@ -130,7 +135,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     args.config = RunConfig(args.scene_preset, args.render_preset, args.resolution, args.frames,
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
-                            phases=args.phases, weather=args.weather, ground=args.ground, exports={o.dest: getattr(args, o.dest) for o in export_options()})
+                            phases=args.phases, weather=args.weather, ground=args.ground,
+                            building_type=args.building_type, exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:

@@ -10,6 +10,7 @@ from pathlib import Path
 from ..batch.config import MAX_FRAMES
 from ..checks import MAX_SEED
 from ..cli_args import OneLineParser, check_out_folder, int_at_least, out_folder
+from .building_types import all_types
 from .catalogue.ground import SURFACES
 from .site import LAYOUTS, PRESETS
 from .timeline import MAX_STAGES
@@ -36,6 +37,8 @@ def main(argv=None) -> int:
                    help="which stage of the timeline to build, 0 to stages-1 (default: 0)")
     p.add_argument("--weather", choices=WEATHERS, help="sky and weather (default: drawn per seed; docs/scenes.md)")
     p.add_argument("--ground", choices=SURFACES, help="the ground's surface (default: drawn per seed; docs/scenes.md)")
+    p.add_argument("--building-type", choices=[t.name for t in all_types()],
+                   help="the type of every building (default: drawn per building; docs/scenes.md)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     args = p.parse_args(argv)
     check_out_folder(p, args.out)
@@ -43,7 +46,7 @@ def main(argv=None) -> int:
         p.error("give --seed N (one site) or --survey A-B (a report of many)")
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
-    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather", "ground") if getattr(args, k) is not None}
+    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather", "ground", "building_type") if getattr(args, k) is not None}
     from . import build_site
 
     from exporters.write_guard import WriteRefused, claim_folder

@@ -19,6 +19,7 @@ from ..checks import check_integer, check_number
 from ..geometry.portable_math import sincos
 from ..geometry.seeding import stream
 from .assets import Footprint
+from .building_types import check_building_type
 from .catalogue.fence import fence_part  # noqa: F401  (generator.blender.build builds the fence from here)
 from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part, wet_materials  # noqa: F401  (and the ground)
 from .kinds import all_kinds, kind as kind_named
@@ -45,7 +46,8 @@ class SiteParams:
     the same for the catalogue's other counted kinds, ((kind, (fewest, most)), ...) sorted by
     kind (a kind absent has none; the presets take them from the kinds' entries); weather: a
     state of generator/scene/weather.py, ground: a surface of generator/scene/catalogue/ground.py
-    (None: drawn per seed).
+    (None: drawn per seed); building_type: a type of generator/scene/building_types/ for every
+    building (None: drawn per building).
     """
 
     size: float = 100.0
@@ -62,6 +64,7 @@ class SiteParams:
     counts: tuple[tuple[str, tuple[int, int]], ...] = ()
     weather: str | None = None
     ground: str | None = None
+    building_type: str | None = None
 
     @property
     def min_size(self) -> float:
@@ -83,6 +86,7 @@ class SiteParams:
         check_number("fps", self.fps, 0, open_low=True)
         check_weather(self.weather)
         check_surface(self.ground)
+        check_building_type(self.building_type)
         counts = checked_counts(self.counts)
         return self if counts == self.counts else replace(self, counts=counts)
 
@@ -160,6 +164,14 @@ class SitePlan:
     ground: GroundSurface | None = None  # what the ground is made of (generator/scene/catalogue/ground.py)
     relief: Relief | None = None  # digs and terrain (generator/scene/relief.py)
 
+    def buildings(self) -> list[dict]:
+        """site.json's ``buildings``: per building (in placing order) its ``type``, levels
+        built, planned and enclosed, and height in metres (docs/scenes.md, "Building types")."""
+        return [{"type": p.asset.info["type"], "floors_built": p.asset.info["floors_built"],
+                 "floors_planned": p.asset.info["floors_planned"], "floors_enclosed": p.asset.info["floors_enclosed"],
+                 "height_m": round(float(p.asset.info["height"]), 3)}
+                for p in self.placed if p.asset.kind == "Building"]
+
     def summary(self) -> dict:
         """site.json's plan: seed, parameters, assets per kind, skipped ones, hook height; a
         timeline's stage; the catalogue's kinds beyond the first release that this site may
@@ -168,7 +180,7 @@ class SitePlan:
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
         params = asdict(self.params)
-        for name in ("counts", "weather", "ground"):
+        for name in ("counts", "weather", "ground", "building_type"):
             if not params[name]:
                 del params[name]  # the first release's sites have none: their site.json stays as it was
         added = {name: kind_named(name).module for name, (_, most) in self.params.counts if most > 0}
@@ -177,7 +189,7 @@ class SitePlan:
         timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return ({"seed": self.seed, "params": params, "assets": kinds, "skipped": self.skipped,
                  "hook_height_m": self.hook_height, "weather": self.weather.summary(), "ground": self.ground.summary(),
-                 "relief": (self.relief or Relief()).summary()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
+                 "relief": (self.relief or Relief()).summary(), "buildings": self.buildings()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
 
 
 def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:

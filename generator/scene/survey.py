@@ -37,13 +37,11 @@ def parse_seeds(text: str) -> list[int]:
 
 def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
     """What the plan of ``seed`` holds (module docstring), JSON-ready: site.json's summary of
-    the plan, plus the objects per class and each building's floors."""
+    the plan, plus the objects per class."""
     plan = plan_site(seed, site_params(preset, **overrides))
     summary = plan.summary()
     classes = Counter(part.label for p in plan.placed for part in p.asset.parts if part.mesh is not None)
-    buildings = [{"floors_built": p.asset.info.get("floors_built"), "floors_planned": p.asset.info.get("floors_planned")}
-                 for p in plan.placed if p.asset.kind == "Building"]
-    return {"seed": seed, "buildings": buildings, "kinds": dict(sorted(summary["assets"].items())),
+    return {"seed": seed, "buildings": summary["buildings"], "kinds": dict(sorted(summary["assets"].items())),
             "objects_per_class": dict(sorted(classes.items())), "ground": summary["ground"],
             "digs": [d["kind"] for d in summary["relief"]["digs"]], "weather": summary["weather"]["name"],
             "sun_elevation_deg": round(summary["weather"]["sun_elevation_deg"], 2),
@@ -60,7 +58,8 @@ def totals(records: list[dict]) -> dict:
            "road": seeds_with(r["ground"]["road"] for r in records),
            "weather": seeds_with(r["weather"] for r in records),
            "digs": seeds_with(d for r in records for d in sorted(set(r["digs"]))),
-           "buildings_per_site": seeds_with(len(r["buildings"]) for r in records)}
+           "buildings_per_site": seeds_with(len(r["buildings"]) for r in records),
+           "building_type": seeds_with(t for r in records for t in sorted({b["type"] for b in r["buildings"]}))}
     for field in ("kinds", "objects_per_class"):
         out[field] = {name: {"seeds": sum(1 for r in records if r[field].get(name)),
                              "total": sum(r[field].get(name, 0) for r in records)}
@@ -74,7 +73,7 @@ def markdown(total: dict, preset: str) -> str:
     """The totals as Markdown tables."""
     n = total["seeds"]
     lines = [f"# Survey of {n} seeds ({preset})", ""]
-    for field in ("surface", "road", "weather", "digs", "buildings_per_site"):
+    for field in ("surface", "road", "weather", "digs", "buildings_per_site", "building_type"):
         lines += [f"| {field} | seeds | share |", "|---|---|---|"]
         lines += [f"| {value} | {count} | {count / n:.0%} |" for value, count in total[field].items()]
         lines.append("")

@@ -1,277 +1,35 @@
-"""Buildings under construction: a reinforced-concrete frame with its core, brick infill,
-shoring, starter bars, a rebar mat, formwork and scaffolding; placed in the middle of the
-site, grown floor by floor over a timeline's stages."""
+"""Buildings under construction, placed in the middle of the site and grown over a
+timeline's stages: one building type per building (:mod:`generator.scene.building_types`:
+a concrete frame with brick infill, precast panels or a curtain wall, a steel frame, ...),
+drawn by weight per building or fixed by ``SiteParams.building_type``."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Callable
-
-import numpy as np
 
 from ...geometry.seeding import stream
-from ..assets import Asset, Part
-from ..building_parts import free_spans, infill_bay, scaffold_run
+from ..assets import Asset
+from ..building_types import Growth, building_type, choose_type, type_materials
 from ..kinds import AssetKind, register
 from ..materials import CONCRETE_LAYERS, Material, Pattern
-from ..meshes import MeshBuilder
 from ..planning import Custom
 from ..timeline import Rebuilt
 
 
-@dataclass(frozen=True)
-class Growth:
-    """A later stage of a building (docs/phases.md): ``built`` floors of concrete frame and
-    ``enclosed`` floors of brick infill (from the ground up), at least the building's own at
-    stage 0. ``floor_rng(k)`` gives the random stream of infill floor ``k`` for floors beyond
-    those the building drew itself, so the draws of every other part stay as at stage 0."""
-
-    built: int
-    enclosed: int
-    floor_rng: Callable[[int], np.random.Generator]
+def type_of(plan, k: int) -> str:
+    """The type of building ``k`` of ``plan``'s seed: ``SiteParams.building_type``, else
+    drawn by weight from the building's own stream (seed, "asset", "Building", k, "type")."""
+    fixed = plan.params.building_type
+    return fixed if fixed is not None else choose_type(stream(plan.seed, "asset", "Building", k, "type")).name
 
 
-@dataclass(frozen=True)
-class Frame:
-    """The drawn design of a building: bays ``sx`` x ``sy`` (``nx`` x ``ny`` of them),
-    columns ``col`` wide, floor-to-floor ``h``, slabs ``t`` thick, ``planned`` floors of
-    which ``own_built`` at stage 0 and ``built`` now; grid lines ``gx``, ``gy``; the slab's
-    outline (``x0``, ``x1``, ``y0``, ``y1``), stair opening ``hole`` and core ``core``
-    (x0, x1, y0, y1 each) and their bays (``hole_i``, ``core_i``)."""
-
-    sx: float
-    sy: float
-    nx: int
-    ny: int
-    col: float
-    h: float
-    t: float
-    planned: int
-    own_built: int
-    built: int
-    gx: np.ndarray
-    gy: np.ndarray
-    x0: float
-    x1: float
-    y0: float
-    y1: float
-    hole: tuple[float, float, float, float]
-    core: tuple[float, float, float, float]
-    hole_i: int
-    core_i: int
-
-
-def draw_frame(rng: np.random.Generator, phase: float, floors: tuple[int, int], max_length: float,
-               growth: Growth | None) -> Frame:
-    """The frame's dimensions, floors and openings (the building's first draws)."""
-    sx, sy = rng.uniform(5.5, 7.5), rng.uniform(5.5, 7.5)
-    fit_x = max(2, int((max_length - 4.0) // sx))
-    fit_y = max(2, int((max_length - 6.0) // sy))
-    nx, ny = int(rng.integers(2, max(3, min(5, fit_x) + 1))), int(rng.integers(2, max(3, min(3, fit_y) + 1)))
-    col = rng.uniform(0.35, 0.55)
-    h, t = rng.uniform(3.0, 3.5), rng.uniform(0.2, 0.3)
-    planned = int(rng.integers(floors[0], floors[1] + 1))
-    built = own_built = max(1, int(round(phase * planned)))
-    if growth is not None:
-        if not own_built <= growth.built <= planned or not max(0, own_built - 2) <= growth.enclosed <= growth.built:
-            raise ValueError(f"building growth {growth.built} floors built, {growth.enclosed} enclosed is outside "
-                             f"[{own_built}, {planned}] built and [{max(0, own_built - 2)}, built] enclosed")
-        built = growth.built
-    lx, ly = nx * sx, ny * sy
-    gx = -lx / 2 + sx * np.arange(nx + 1)
-    gy = -ly / 2 + sy * np.arange(ny + 1)
-    hole_i, core_i = rng.choice(nx, size=2, replace=False)
-    hole_j, core_j = int(rng.integers(ny)), int(rng.integers(ny))
-    hole = (gx[hole_i] + 0.6, gx[hole_i + 1] - 0.6, gy[hole_j] + 0.6, gy[hole_j] + min(3.0, sy - 1.2))
-    core = (gx[core_i] + col, gx[core_i] + min(sx - col, 3.2), gy[core_j] + col, gy[core_j] + min(sy - col, 4.5))
-    return Frame(sx, sy, nx, ny, col, h, t, planned, own_built, built, gx, gy, -lx / 2 - 0.3, lx / 2 + 0.3,
-                 -ly / 2 - 0.3, ly / 2 + 0.3, hole, core, hole_i, core_i)
-
-
-def add_slabs_and_columns(concrete: MeshBuilder, f: Frame) -> None:
-    """Every built floor's slab (around the stair opening) and the columns between them."""
-    hx0, hx1, hy0, hy1 = f.hole
-    for k in range(f.built + 1):
-        z = k * f.h + f.t / 2
-        for bx0, bx1, by0, by1 in ((f.x0, hx0, f.y0, f.y1), (hx1, f.x1, f.y0, f.y1), (hx0, hx1, f.y0, hy0), (hx0, hx1, hy1, f.y1)):
-            concrete.box((bx1 - bx0, by1 - by0, f.t), ((bx0 + bx1) / 2, (by0 + by1) / 2, z), material="concrete")
-    for k in range(f.built):
-        zb, ze = k * f.h + f.t, (k + 1) * f.h
-        for x in f.gx:
-            for y in f.gy:
-                concrete.box((f.col, f.col, ze - zb), (x, y, (zb + ze) / 2), material="concrete")
-
-
-def add_core(concrete: MeshBuilder, f: Frame) -> None:
-    """The core: 3 full walls and a front wall with a door on every floor, 2 m ahead of the slabs."""
-    cx0, cx1, cy0, cy1 = f.core
-    wt = 0.25
-    top = f.built * f.h + f.t + 2.0
-    concrete.box((cx1 - cx0, wt, top), ((cx0 + cx1) / 2, cy1 - wt / 2, top / 2), material="concrete_dark")
-    concrete.box((wt, cy1 - cy0 - wt, top), (cx0 + wt / 2, (cy0 + cy1 - wt) / 2, top / 2), material="concrete_dark")
-    concrete.box((wt, cy1 - cy0 - wt, top), (cx1 - wt / 2, (cy0 + cy1 - wt) / 2, top / 2), material="concrete_dark")
-    door = min(1.0, cx1 - cx0 - 2 * wt - 0.4)
-    dmid = (cx0 + cx1) / 2
-    for k in range(int(np.ceil(top / f.h))):
-        zb, ze = k * f.h, min((k + 1) * f.h, top)
-        if ze - zb < 0.3:
-            break
-        left, right = (cx0 + wt, dmid - door / 2), (dmid + door / 2, cx1 - wt)
-        for a, b in (left, right):
-            concrete.box((b - a, wt, ze - zb), ((a + b) / 2, cy0 + wt / 2, (zb + ze) / 2), material="concrete_dark")
-        door_top = min(zb + 2.1, ze - 0.05)
-        concrete.box((door, wt, ze - door_top), (dmid, cy0 + wt / 2, (door_top + ze) / 2), material="concrete_dark")
-
-
-def add_shoring(formwork: MeshBuilder, f: Frame) -> None:
-    """Shoring props under the most recent slab (every 1.2 m, clear of columns, core and opening)."""
-    if f.built < 1:
-        return
-    cx0, cx1, cy0, cy1 = f.core
-    hx0, hx1, hy0, hy1 = f.hole
-    zb, ze = (f.built - 1) * f.h + f.t, f.built * f.h
-    for x in np.arange(f.x0 + 0.8, f.x1 - 0.5, 1.2):
-        for y in np.arange(f.y0 + 0.8, f.y1 - 0.5, 1.2):
-            near_col = np.min(np.abs(f.gx - x)) < f.col / 2 + 0.15 and np.min(np.abs(f.gy - y)) < f.col / 2 + 0.15
-            in_core = cx0 - 0.3 < x < cx1 + 0.3 and cy0 - 0.3 < y < cy1 + 0.3
-            in_hole = hx0 - 0.2 < x < hx1 + 0.2 and hy0 - 0.2 < y < hy1 + 0.2
-            if near_col or in_core or in_hole:
-                continue
-            formwork.box((0.15, 0.15, 0.008), (x, y, zb + 0.004), material="steel_painted")
-            formwork.cylinder(0.03, (x, y, zb + 0.008), (x, y, ze - 0.6), segments=8, material="steel_painted")
-            formwork.cylinder(0.024, (x, y, ze - 0.6), (x, y, ze - 0.008), segments=8, material="steel_galvanized")
-            formwork.box((0.15, 0.15, 0.008), (x, y, ze - 0.004), material="steel_painted")
-
-
-def infill(rng: np.random.Generator, f: Frame, growth: Growth | None) -> tuple[int, MeshBuilder]:
-    """Brick infill with window openings on completed floors (all but the top two), glazed
-    below: (floors enclosed, walls)."""
-    own_enclosed = max(0, f.own_built - 2)
-    enclosed = own_enclosed if growth is None else growth.enclosed
-    walls = MeshBuilder()
-    gx, gy = f.gx, f.gy
-    for k in range(max(enclosed, own_enclosed)):  # the building's own floors draw from rng even when not built
-        zb, ze = k * f.h + f.t, (k + 1) * f.h
-        glazed = k < enclosed - 1
-        frng = rng if k < own_enclosed else growth.floor_rng(k)
-        for along_x, line, ticks in ((True, gy[0], gx), (True, gy[-1], gx), (False, gx[0], gy), (False, gx[-1], gy)):
-            for a0, a1 in zip(ticks[:-1], ticks[1:]):
-                if frng.random() < 0.1:
-                    continue  # a bay left open (deliveries)
-                win = frng.uniform(1.2, 2.4)
-                if k < enclosed:
-                    infill_bay(walls, along_x, line, a0 + f.col / 2, a1 - f.col / 2, zb, ze, win, glazed)
-    return enclosed, walls
-
-
-def add_starter_bars(rng: np.random.Generator, rebar: MeshBuilder, formwork: MeshBuilder, f: Frame) -> None:
-    """Starter bars on every column of the top slab (a cage of 8 bars with stirrups), formwork
-    around some of them."""
-    cx0, cx1, cy0, cy1 = f.core
-    top_z = f.built * f.h + f.t
-    bar_h = rng.uniform(1.0, 1.5)
-    boxed = rng.random((len(f.gx), len(f.gy))) < 0.3
-    for a, x in enumerate(f.gx):
-        for b, y in enumerate(f.gy):
-            if cx0 - 0.5 < x < cx1 + 0.5 and cy0 - 0.5 < y < cy1 + 0.5:
-                continue
-            c = f.col / 2 - 0.05
-            for px, py in ((-c, -c), (c, -c), (c, c), (-c, c), (0, -c), (c, 0), (0, c), (-c, 0)):
-                rebar.cylinder(0.012, (x + px, y + py, top_z), (x + px, y + py, top_z + bar_h), segments=6, material="rebar")
-            for zs in np.arange(top_z + 0.15, top_z + bar_h - 0.05, 0.2):
-                for dx, dy, sx_, sy_ in ((0, -c - 0.02, 2 * c + 0.052, 0.012), (0, c + 0.02, 2 * c + 0.052, 0.012),
-                                         (-c - 0.02, 0, 0.012, 2 * c + 0.016), (c + 0.02, 0, 0.012, 2 * c + 0.016)):
-                    rebar.box((sx_, sy_, 0.012), (x + dx, y + dy, zs), material="rebar")
-            if boxed[a, b]:
-                # panels 2 cm off the column's faces: twice the timeline's point tolerance
-                # (changes.POINT_TOLERANCE), so the next floor's column faces, poured where the
-                # panels stood, are 'added' without a tie at the tolerance
-                panel_h, th, gap = 2.7, 0.06, 0.02
-                half = f.col / 2 + th / 2 + gap
-                for dx, dy, w in ((half, 0, (th, f.col + 2 * th + 2 * gap)), (-half, 0, (th, f.col + 2 * th + 2 * gap)),
-                                  (0, half, (f.col, th)), (0, -half, (f.col, th))):
-                    formwork.box((w[0], w[1], panel_h), (x + dx, y + dy, top_z + panel_h / 2), material="formwork")
-
-
-def add_rebar_mat(rng: np.random.Generator, rebar: MeshBuilder, f: Frame) -> None:
-    """A rebar mat being laid on part of the top slab: bars every 0.2 m both ways on chairs,
-    kept clear of the stair opening and the core."""
-    cx0, cx1, cy0, cy1 = f.core
-    hx0, hx1, hy0, hy1 = f.hole
-    top_z = f.built * f.h + f.t
-    mat_x0, mat_x1 = f.x0 + 0.5, f.x0 + rng.uniform(0.3, 0.7) * (f.x1 - f.x0)
-    mat_y0, mat_y1 = f.y0 + 0.5, f.y1 - 0.5
-    keep_out = [(hx0 - 0.1, hx1 + 0.1, hy0 - 0.1, hy1 + 0.1), (cx0 - 0.2, cx1 + 0.2, cy0 - 0.2, cy1 + 0.2)]
-    z_bar = top_z + 0.05
-    for y in np.arange(mat_y0, mat_y1, 0.2):
-        for a, b in free_spans(mat_x0, mat_x1, [(r[0], r[1]) for r in keep_out if r[2] < y < r[3]]):
-            rebar.cylinder(0.008, (a, y, z_bar), (b, y, z_bar), segments=6, material="rebar")
-    for x in np.arange(mat_x0, mat_x1, 0.2):
-        for a, b in free_spans(mat_y0, mat_y1, [(r[2], r[3]) for r in keep_out if r[0] < x < r[1]]):
-            rebar.cylinder(0.008, (x, a, z_bar + 0.016), (x, b, z_bar + 0.016), segments=6, material="rebar")
-    for x in np.arange(mat_x0 + 0.1, mat_x1, 1.0):
-        for y in np.arange(mat_y0 + 0.1, mat_y1, 1.0):
-            if not any(r[0] < x < r[1] and r[2] < y < r[3] for r in keep_out):
-                rebar.box((0.04, 0.04, 0.042), (x, y, top_z + 0.021), material="plastic_white")  # bar chairs
-
-
-def add_spare_panels(rng: np.random.Generator, formwork: MeshBuilder, f: Frame) -> None:
-    """A stack of spare formwork panels (2.4 x 0.9) in the middle of a free bay of the top slab."""
-    gx, gy, nx = f.gx, f.gy, f.nx
-    top_z = f.built * f.h + f.t
-    fx = (gx[(f.hole_i + 1) % nx] + gx[(f.hole_i + 1) % nx + 1]) / 2 if (f.hole_i + 1) % nx != f.core_i else (gx[0] + gx[1]) / 2
-    fy = (gy[0] + gy[1]) / 2
-    for k in range(int(rng.integers(3, 9))):
-        formwork.box((2.4, 0.9, 0.12), (fx, fy, top_z + 0.06 + 0.121 * k), material="formwork")
-
-
-def scaffolding(rng: np.random.Generator, f: Frame) -> MeshBuilder:
-    """Scaffolding on one or both long facades, and on a short one half the time."""
-    scaffold = MeshBuilder()
-    sides = [-1] if rng.random() < 0.4 else [-1, 1]
-    height = f.built * f.h + f.t + 1.0
-    for side in sides:
-        scaffold_run(scaffold, f.x0, f.x1, side * (f.y1 + 0.3), side, height)
-    if rng.random() < 0.5:  # also on a short facade, between the long runs
-        end = MeshBuilder()
-        scaffold_run(end, f.y0 + 0.9, f.y1 - 0.9, f.x1 + 0.3, 1, height)
-        # built along x at y = x1 + 0.3 facing +y: turn it to run along y at x = x1 + 0.3
-        scaffold.merge(end, rotation=np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]).T)
-    return scaffold
-
-
-def building(rng: np.random.Generator, phase: float, floors: tuple[int, int], max_length: float = 60.0,
-             growth: Growth | None = None) -> Asset:
-    """A reinforced-concrete frame under construction, centred on the origin.
-
-    Bays of 5.5-7.5 m, floor-to-floor 3.0-3.5 m, slabs 0.2-0.3 m with a stair opening,
-    columns 0.35-0.55 m, a core with door openings running ahead of the slabs, starter bars
-    and column formwork on the top slab, and scaffolding on one or two long facades.
-    ``phase`` in [0, 1] is the share of the planned floors already built (at least one);
-    the footprint, scaffolding included, stays within ``max_length`` metres. ``growth``
-    builds a later stage of the same building: every random draw is made as at stage 0, so
-    what a stage has in common with the previous one is the same geometry.
-    """
-    f = draw_frame(rng, phase, floors, max_length, growth)
-    concrete, formwork, rebar = MeshBuilder(), MeshBuilder(), MeshBuilder()
-    add_slabs_and_columns(concrete, f)
-    add_core(concrete, f)
-    add_shoring(formwork, f)
-    enclosed, walls = infill(rng, f, growth)
-    add_starter_bars(rng, rebar, formwork, f)
-    add_rebar_mat(rng, rebar, f)
-    add_spare_panels(rng, formwork, f)
-    scaffold = scaffolding(rng, f)
-    if enclosed:
-        concrete.merge(walls)
-    parts = [Part("Building", concrete.build()), Part("Rebar", rebar.build()), Part("Formwork", formwork.build()),
-             Part("Scaffolding", scaffold.build())]
-    top_z = f.built * f.h + f.t
-    depth = 2 * (f.y1 + 0.3 + 0.73 + 0.3)
-    return Asset("Building", parts, (f.x1 - f.x0 + 0.6, depth), info={"floors_built": f.built, "floors_planned": f.planned,
-                                                                        "floors_enclosed": enclosed,
-                                                                        "height": top_z + 2.0, "floor_height": f.h})
+def build_one(plan, k: int, brng, phase: float, max_length: float, growth: Growth | None) -> Asset:
+    """Building ``k`` of its type, from its stream ``brng`` (after the phase draw)."""
+    name = type_of(plan, k)
+    asset = building_type(name).build(brng, phase, plan.params.floors, max_length, growth)
+    asset.info["type"] = name
+    asset.info["design"] = (k, phase, max_length)  # what a later stage rebuilds it from
+    return asset
 
 
 def building_schedule(seed: int, index: int, own_built: int, planned: int, stage: int) -> tuple[int, int]:
@@ -294,9 +52,7 @@ def designed_building(plan, k: int, phase: float, max_length: float, growth: Gro
     brng = stream(plan.seed, "asset", "Building", k)
     if plan.params.phase is None:
         brng.uniform(0.25, 1.0)  # the phase draw of plan_buildings
-    asset = building(brng, phase, plan.params.floors, max_length=max_length, growth=growth)
-    asset.info["design"] = (k, phase, max_length)
-    return asset
+    return build_one(plan, k, brng, phase, max_length, growth)
 
 
 def grow_buildings(plan, buildings: list, stage: int) -> None:
@@ -319,8 +75,7 @@ def plan_buildings(site, kind: AssetKind) -> None:
         brng = stream(site.seed, "asset", kind.name, k)
         phase = params.phase if params.phase is not None else float(brng.uniform(0.25, 1.0))
         max_length = 2 * inner * (0.9 if n_build == 1 else 0.6)
-        asset = building(brng, phase, params.floors, max_length=max_length)
-        asset.info["design"] = (k, phase, max_length)  # what a later stage rebuilds it from
+        asset = build_one(plan, k, brng, phase, max_length, None)
         yaw0 = 0.0 if params.layout == "grid" else float(brng.uniform(-0.3, 0.3))
         cands = [((brng.uniform(-inner, inner), brng.uniform(-inner, inner)), yaw0 + brng.choice([0, math.pi / 2])) for _ in range(300)]
         placed = site.place(kind.name, asset, cands)
@@ -335,13 +90,13 @@ def plan_buildings(site, kind: AssetKind) -> None:
 
 
 register(AssetKind(
-    name="Building", classes=("Building", "Rebar", "Formwork", "Scaffolding"), build=building,
+    name="Building", classes=("Building", "Rebar", "Formwork", "Scaffolding"), build=None,
     place=Custom(plan_buildings), order=10, count_param="buildings",
     counts={"small": (1, 1), "medium": (2, 2), "large": (3, 4)},
     materials=(Material("concrete_dark", (0.32, 0.31, 0.3), 0.85, 0.0, Pattern(3.0, (0.24, 0.23, 0.22), 0.5),
                         layers=CONCRETE_LAYERS),
-               Material("formwork", (0.75, 0.45, 0.05), 0.6, 0.0, Pattern(5.0, (0.55, 0.4, 0.2), 0.4))),
-    stage=Rebuilt("1-2 floors of frame a stage until the planned height, brick infill two floors behind, then the "
-                  "remaining facades one floor a stage; the top slab's rebar and formwork climb with it"),
+               Material("formwork", (0.75, 0.45, 0.05), 0.6, 0.0, Pattern(5.0, (0.55, 0.4, 0.2), 0.4))) + type_materials(),
+    stage=Rebuilt("1-2 levels of structure a stage until the planned height, the envelope two levels behind, "
+                  "then the remaining facades one level a stage (each building type says what a level is)"),
     shared_streams=True,
 ))
