@@ -42,3 +42,34 @@ def test_bad_survey_ranges_are_one_line_and_exit_2(tmp_path):
                                   capture_output=True, text=True, cwd=ROOT), "--survey 9-1", "1-9")
     assert_refused(subprocess.run([sys.executable, "-m", "generator.scene", "--out", str(tmp_path / "y")],
                                   capture_output=True, text=True, cwd=ROOT), "--seed", "--survey")
+
+
+def test_survey_previews_are_the_sites_previews_with_their_colours(tmp_path):
+    """--previews keeps each seed's own preview (the same bytes as building that seed alone),
+    its mean colour, the spread of the colours over the seeds and a contact sheet of them."""
+    import numpy as np
+    from PIL import Image
+
+    from generator.scene import build_site
+
+    r = subprocess.run([sys.executable, "-m", "generator.scene", "--survey", "3-4", "--preset", "small", "--previews",
+                        "--out", str(tmp_path / "s")], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads((tmp_path / "s" / "survey.json").read_text())
+    alone = build_site(4, "small", tmp_path / "alone", preview=True)
+    kept = tmp_path / "s" / "previews" / "seed_000004.png"
+    assert kept.read_bytes() == alone.preview.read_bytes()
+    means = []
+    for record in report["seeds"]:
+        rgb = np.asarray(Image.open(tmp_path / "s" / "previews" / f"seed_{record['seed']:06d}.png").convert("RGB")) / 255.0
+        means.append(rgb.reshape(-1, 3).mean(axis=0))
+        assert np.allclose(record["preview_mean_rgb"], means[-1], atol=1e-12)
+    spread = report["totals"]["preview_colour_spread"]
+    assert np.allclose([spread["r"], spread["g"], spread["b"]], np.std(means, axis=0), atol=1e-12) and spread["mean"] > 0
+    with Image.open(tmp_path / "s" / "contact_sheet.png") as sheet:
+        assert sheet.size == (4 * 240, 160)
+        second = np.asarray(sheet.convert("RGB"))[20:160, 260:480].astype(float)
+    thumb = np.asarray(Image.open(kept).convert("RGB").resize((240, 160), Image.Resampling.LANCZOS))[20:160, 20:240]
+    assert np.abs(second - thumb).mean() < 1.0  # the second cell is seed 4's preview (below its label)
+    assert_refused(subprocess.run([sys.executable, "-m", "generator.scene", "--seed", "3", "--previews", "--out",
+                                   str(tmp_path / "z")], capture_output=True, text=True, cwd=ROOT), "--previews", "--survey")

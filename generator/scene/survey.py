@@ -1,6 +1,8 @@
 """A diversity report of many seeds' site plans (bpy-free, nothing rendered):
 ``python -m generator.scene --survey 0-99 --out DIR`` writes ``DIR/survey.json`` (per seed and
-in total) and ``DIR/survey.md`` (the totals as tables). docs/scenes.md, "Survey".
+in total) and ``DIR/survey.md`` (the totals as tables); with ``--previews`` also each seed's
+preview, its colour and a contact sheet (:mod:`.survey_previews`, which builds the sites in
+Blender). docs/scenes.md, "Survey".
 
 Per seed: its buildings (floors built and planned), the asset kinds and how many of each,
 the objects per taxonomy class (the plan's parts with a mesh: the site's Blender objects but
@@ -83,15 +85,30 @@ def markdown(total: dict, preset: str) -> str:
         lines.append("")
     s = total["sun_elevation_deg"]
     lines.append(f"Sun elevation: {s['min']}-{s['max']} degrees, median {s['median']}.")
+    if "preview_colour_spread" in total:
+        c = total["preview_colour_spread"]
+        lines += ["", f"Preview colour spread (std over seeds of each channel's mean, 8-bit sRGB in [0, 1]): "
+                      f"R {c['r']:.4f}, G {c['g']:.4f}, B {c['b']:.4f}, mean {c['mean']:.4f}; previews in "
+                      "previews/, contact_sheet.png."]
     return "\n".join(lines) + "\n"
 
 
-def write_survey(seeds: list[int], out: Path, preset: str = "medium", progress=None, **overrides) -> dict:
+def write_survey(seeds: list[int], out: Path, preset: str = "medium", progress=None, previews: bool = False,
+                 **overrides) -> dict:
     """Plan every seed, write ``survey.json`` and ``survey.md`` into ``out``; the totals.
-    ``progress``: wraps the seeds' iteration (a tqdm), if given."""
+    ``previews``: also build each seed and keep its preview, colour and a contact sheet
+    (imports bpy). ``progress``: wraps an iteration over the seeds (a tqdm), if given."""
     records = [seed_record(s, preset, **overrides) for s in (progress(seeds) if progress else seeds)]
     total = totals(records)
     out.mkdir(parents=True, exist_ok=True)
+    if previews:
+        from .survey_previews import colour_spread, contact_sheet, preview_colour, preview_seeds
+
+        kept = preview_seeds(seeds, out, preset, progress, **overrides)
+        for r in records:
+            r["preview_mean_rgb"] = preview_colour(kept[r["seed"]])
+        total["preview_colour_spread"] = colour_spread([r["preview_mean_rgb"] for r in records])
+        contact_sheet([(s, kept[s]) for s in seeds], out / "contact_sheet.png")
     (out / "survey.json").write_text(json.dumps({"preset": preset, "overrides": overrides, "totals": total,
                                                  "seeds": records}, indent=1) + "\n")
     (out / "survey.md").write_text(markdown(total, preset))

@@ -33,9 +33,9 @@ def build_one(plan, k: int, brng, phase: float, max_length: float, growth: Growt
 
 
 def building_schedule(seed: int, index: int, own_built: int, planned: int, stage: int) -> tuple[int, int]:
-    """(floors built, floors enclosed) of building ``index`` at ``stage``, from its stage-0
-    state: each stage adds 1-2 floors of frame (infill two floors behind) until ``planned``,
-    then one more enclosed floor a stage."""
+    """(levels built, levels enclosed) of building ``index`` at ``stage``, from its stage-0
+    state: each stage adds 1-2 levels of structure (the envelope two levels behind) until
+    ``planned``, then one more enclosed level a stage (every building type alike)."""
     built, enclosed = own_built, max(0, own_built - 2)
     for s in range(1, stage + 1):
         r = stream(seed, "timeline", s, "Building", index)
