@@ -58,8 +58,29 @@ def steel_frame(rng: np.random.Generator, phase: float, floors: tuple[int, int],
     mesh_bays = int(rng.integers(1, nx + 1))  # bays of the newest floor with their mesh laid
     steel, works, rebar = MeshBuilder(), MeshBuilder(), MeshBuilder()
     steel.box((x1 - x0, y1 - y0, 0.2), (0.0, 0.0, 0.1), material="concrete")  # ground-bearing slab
-    stub = 1.2 if built < planned else 0.6  # the columns run on to the next splice
-    top = built * h + stub
+    top = built * h + (1.2 if built < planned else 0.6)  # the columns run on to the next splice
+    add_steelwork(steel, gx, gy, h, built, top, laid)
+    add_bracing(steel, gx, gy, h, built, braced)
+    if built > 1:  # mesh on part of the newest poured floor
+        add_mesh(rebar, gx, gy, (built - 1) * h + DECK + 0.04, mesh_bays)
+    enclosed, cladding = clad(rng, (x0, x1, y0, y1), h, own_built, built, growth)
+    steel.merge(cladding)
+    edge_protection(works, x0, x1, y0, y1, [(k * h - BEAM, k * h + (DECK if k < built else 0.05))
+                                           for k in range(max(1, enclosed), built + 1)])
+    parts = [Part("Building", steel.build()), Part("Scaffolding", works.build())]
+    if built > 1:
+        parts.insert(1, Part("Rebar", rebar.build()))
+    size = (x1 - x0 + 2 * (CLADDING + 0.3), y1 - y0 + 2 * (CLADDING + 0.3))
+    return Asset("Building", parts, size, info={"floors_built": built, "floors_planned": planned,
+                                                 "floors_enclosed": enclosed, "height": top, "floor_height": h})
+
+
+def add_steelwork(steel: MeshBuilder, gx: np.ndarray, gy: np.ndarray, h: float, built: int, top: float,
+                  laid: np.ndarray) -> None:
+    """Columns up to ``top``, beams on every grid line of every level, composite floors
+    (the outline of the grid lines plus EDGE) below the newest level and the ``laid`` bays'
+    deck sheets on it."""
+    x0, x1, y0, y1 = gx[0] - EDGE, gx[-1] + EDGE, gy[0] - EDGE, gy[-1] + EDGE
     for x in gx:
         for y in gy:
             h_section(steel, (x, y, 0.2 + (top - 0.2) / 2), top - 0.2, "z", FLANGE, FLANGE, "steel_primer")
@@ -73,13 +94,18 @@ def steel_frame(rng: np.random.Generator, phase: float, floors: tuple[int, int],
                 h_section(steel, (x, (a + b) / 2, zc), b - a - FLANGE, "y", BEAM, 0.18, "steel_primer")
         if k < built:  # poured
             steel.box((x1 - x0, y1 - y0, DECK), (0.0, 0.0, k * h + DECK / 2), material="concrete")
-        else:  # deck sheets on the newest steelwork
-            for i in range(nx):
-                for j in range(ny):
-                    if laid[i, j]:
-                        steel.box((gx[i + 1] - gx[i], gy[j + 1] - gy[j], 0.05), ((gx[i] + gx[i + 1]) / 2, (gy[j] + gy[j + 1]) / 2,
-                                  k * h + 0.025), material="metal_deck")
-    for k in range(built):  # X-bracing in one bay of each facade, every storey
+            continue
+        for i in range(len(gx) - 1):  # deck sheets on the newest steelwork
+            for j in range(len(gy) - 1):
+                if laid[i, j]:
+                    steel.box((gx[i + 1] - gx[i], gy[j + 1] - gy[j], 0.05),
+                              ((gx[i] + gx[i + 1]) / 2, (gy[j] + gy[j + 1]) / 2, k * h + 0.025), material="metal_deck")
+
+
+def add_bracing(steel: MeshBuilder, gx: np.ndarray, gy: np.ndarray, h: float, built: int, braced) -> None:
+    """X-bracing in one bay of each facade (``braced``: the bays along x, then along y),
+    every storey."""
+    for k in range(built):
         zb, ze = k * h + (0.2 if k == 0 else 0.0), (k + 1) * h - BEAM
         for y, i in ((gy[0], braced[0][0]), (gy[-1], braced[0][1])):
             steel.cylinder(BRACE, (gx[i], y, zb), (gx[i + 1], y, ze), segments=8, material="steel_primer")
@@ -87,23 +113,15 @@ def steel_frame(rng: np.random.Generator, phase: float, floors: tuple[int, int],
         for x, j in ((gx[0], braced[1][0]), (gx[-1], braced[1][1])):
             steel.cylinder(BRACE, (x, gy[j], zb), (x, gy[j + 1], ze), segments=8, material="steel_primer")
             steel.cylinder(BRACE, (x, gy[j + 1], zb), (x, gy[j], ze), segments=8, material="steel_primer")
-    if built > 1:  # mesh on part of the newest poured floor: bars every 0.2 m both ways
-        z = (built - 1) * h + DECK + 0.04
-        mx1 = gx[mesh_bays] - 0.1
-        for y in np.arange(gy[0] + 0.1, gy[-1] - 0.05, 0.2):
-            rebar.cylinder(0.006, (gx[0] + 0.1, y, z), (mx1, y, z), segments=6, material="rebar")
-        for x in np.arange(gx[0] + 0.1, mx1, 0.2):
-            rebar.cylinder(0.006, (x, gy[0] + 0.1, z + 0.012), (x, gy[-1] - 0.1, z + 0.012), segments=6, material="rebar")
-    enclosed, cladding = clad(rng, (x0, x1, y0, y1), h, own_built, built, growth)
-    steel.merge(cladding)
-    edge_protection(works, x0, x1, y0, y1, [(k * h - BEAM, k * h + (DECK if k < built else 0.05))
-                                           for k in range(max(1, enclosed), built + 1)])
-    parts = [Part("Building", steel.build()), Part("Scaffolding", works.build())]
-    if built > 1:
-        parts.insert(1, Part("Rebar", rebar.build()))
-    size = (x1 - x0 + 2 * (CLADDING + 0.3), y1 - y0 + 2 * (CLADDING + 0.3))
-    return Asset("Building", parts, size, info={"floors_built": built, "floors_planned": planned,
-                                                 "floors_enclosed": enclosed, "height": top, "floor_height": h})
+
+
+def add_mesh(rebar: MeshBuilder, gx: np.ndarray, gy: np.ndarray, z: float, bays: int) -> None:
+    """A mesh at height ``z`` over the first ``bays`` bays along x: bars every 0.2 m both ways."""
+    mx1 = gx[bays] - 0.1
+    for y in np.arange(gy[0] + 0.1, gy[-1] - 0.05, 0.2):
+        rebar.cylinder(0.006, (gx[0] + 0.1, y, z), (mx1, y, z), segments=6, material="rebar")
+    for x in np.arange(gx[0] + 0.1, mx1, 0.2):
+        rebar.cylinder(0.006, (x, gy[0] + 0.1, z + 0.012), (x, gy[-1] - 0.1, z + 0.012), segments=6, material="rebar")
 
 
 def clad(rng: np.random.Generator, outline, h: float, own_built: int, built: int, growth: Growth | None):
