@@ -4,7 +4,7 @@ in total) and ``DIR/survey.md`` (the totals as tables); with ``--previews`` also
 preview, its colour and a contact sheet (:mod:`.survey_previews`, which builds the sites in
 Blender). docs/scenes.md, "Survey".
 
-Per seed: its buildings (floors built and planned), the asset kinds and how many of each,
+Per seed: its buildings (type, levels built, planned and enclosed, height), the asset kinds and how many of each,
 the objects per taxonomy class (the plan's parts with a mesh: the site's Blender objects but
 the ground and fence), the ground's surface and road,
 the relief's digs, the weather and the sun's elevation, and what found no room. In total:
