@@ -24,6 +24,7 @@ from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
 from .scene.building_types import all_types
 from .scene.catalogue.ground import SURFACES
+from .scene.contexts import CONTEXTS
 from .scene.weather import WEATHERS
 from exporters.modalities import MODALITIES
 from exporters.sinks import export_options
@@ -61,6 +62,8 @@ def _add_site_arguments(p) -> None:
     p.add_argument("--building-type", choices=types, default=None,
                    help="the type of every building: " + ", ".join(types) + " (default: drawn per building; "
                         "docs/scenes.md)")
+    p.add_argument("--context", choices=list(CONTEXTS), default=None,
+                   help="what surrounds every site: " + ", ".join(CONTEXTS) + " (default: drawn per seed; docs/scenes.md)")
 
 
 def _add_rerun_arguments(p) -> None:
@@ -136,7 +139,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
                             phases=args.phases, weather=args.weather, ground=args.ground,
-                            building_type=args.building_type, exports={o.dest: getattr(args, o.dest) for o in export_options()})
+                            building_type=args.building_type, context=args.context, exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:

@@ -9,6 +9,7 @@ import numpy as np
 from ..checks import check_integer, check_number
 from ..render_settings import check_side
 from ..scene.building_types import check_building_type
+from ..scene.contexts import check_context
 from ..scene.catalogue.ground import check_surface
 from ..scene.weather import check_weather
 
@@ -21,7 +22,7 @@ MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every 
 MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may get from the densities
 
 
-IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None}  # config keys a manifest leaves out when they hold these values
+IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -50,10 +51,12 @@ class RunConfig:
     weather: str | None = None  # every seed's weather (generator/scene/weather.py); None: drawn per seed
     ground: str | None = None  # every seed's ground surface (generator/scene/catalogue/ground.py); None: drawn per seed
     building_type: str | None = None  # every building's type (generator/scene/building_types/); None: drawn per building
+    context: str | None = None  # every seed's context (generator/scene/contexts.py); None: drawn per seed
 
     def site_overrides(self) -> dict:
         """The site parameters this run sets for every seed (given to build_site)."""
-        return {"weather": self.weather, "ground": self.ground, "building_type": self.building_type}
+        return {"weather": self.weather, "ground": self.ground, "building_type": self.building_type,
+                "context": self.context}
 
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
@@ -67,6 +70,7 @@ class RunConfig:
         check_weather(self.weather)
         check_surface(self.ground)
         check_building_type(self.building_type)
+        check_context(self.context)
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
             raise ValueError("--phases needs the outputs depth and instance (the change masks are made from them); "
                              "add them to --outputs")

@@ -8,7 +8,8 @@ A kind's entry (:class:`generator.scene.kinds.AssetKind`) names its rule in ``pl
   kind, whose every draw comes from streams named after it;
 - :class:`Mix`: one of the first release's props: the site draws ``density`` props per
   170 m^2 and picks each one's kind by ``weight`` from the shared stream;
-- :class:`Custom`: the kind's own planner function (buildings, cranes, trucks, the fence).
+- :class:`Custom`: the kind's own planner function (buildings, cranes, trucks, the fence);
+- :class:`Grouped`: one planner for several kinds at once (the surroundings beyond the fence).
 
 :func:`generator.scene.site.plan_site` runs the rules in the entries' ``order``; kinds whose
 rules share a ``group`` (the mix) are planned together, when the group's first kind's turn comes.
@@ -98,6 +99,22 @@ class Custom(Placement):
     def plan(self, site: SiteState, kinds: list) -> None:
         for kind in kinds:
             self.planner(site, kind)
+
+
+@dataclass(frozen=True)
+class Grouped(Placement):
+    """Kinds planned together by one ``planner(site, kinds)`` (every kind whose rule is
+    this one, in their order), at the turn of the first of them; ``name`` names the group."""
+
+    planner: Callable[[SiteState, list], None]
+    name: str
+
+    @property
+    def group(self) -> str:  # type: ignore[override]
+        return self.name
+
+    def plan(self, site: SiteState, kinds: list) -> None:
+        self.planner(site, kinds)
 
 
 @dataclass(frozen=True)

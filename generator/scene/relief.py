@@ -234,8 +234,10 @@ def plan_digs(site, kind) -> None:
             site.place(kind.name, heap, _heap_candidates(dig, rng))
 
 
-def plan_terrain(plan, margin: float) -> None:
+def plan_terrain(plan, margin: float, factor: float = 1.0) -> None:
     """The terrain beyond the fence of ``plan`` (``margin`` metres of it), from the seed's own
-    ``relief`` stream, into ``plan.relief``."""
+    ``relief`` stream, its rise and waves scaled by ``factor`` (the context's: 0 keeps the
+    ground level), into ``plan.relief``."""
     plan.relief = plan.relief or Relief()
-    plan.relief.terrain = draw_terrain(stream(plan.seed, "relief", "terrain"), margin)
+    t = draw_terrain(stream(plan.seed, "relief", "terrain"), margin)
+    plan.relief.terrain = Terrain(t.rise * factor, margin, tuple((kx, ky, ph, amp * factor) for kx, ky, ph, amp in t.waves))

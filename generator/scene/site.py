@@ -20,6 +20,7 @@ from ..geometry.portable_math import sincos
 from ..geometry.seeding import stream
 from .assets import Footprint
 from .building_types import check_building_type
+from .contexts import Context, check_context, choose_context
 from .catalogue.fence import fence_part  # noqa: F401  (generator.blender.build builds the fence from here)
 from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part, wet_materials  # noqa: F401  (and the ground)
 from .kinds import all_kinds, kind as kind_named
@@ -47,7 +48,8 @@ class SiteParams:
     kind (a kind absent has none; the presets take them from the kinds' entries); weather: a
     state of generator/scene/weather.py, ground: a surface of generator/scene/catalogue/ground.py
     (None: drawn per seed); building_type: a type of generator/scene/building_types/ for every
-    building (None: drawn per building).
+    building (None: drawn per building); context: a kind of generator/scene/contexts.py, what
+    surrounds the site (None: drawn per seed).
     """
 
     size: float = 100.0
@@ -65,6 +67,7 @@ class SiteParams:
     weather: str | None = None
     ground: str | None = None
     building_type: str | None = None
+    context: str | None = None
 
     @property
     def min_size(self) -> float:
@@ -87,6 +90,7 @@ class SiteParams:
         check_weather(self.weather)
         check_surface(self.ground)
         check_building_type(self.building_type)
+        check_context(self.context)
         counts = checked_counts(self.counts)
         return self if counts == self.counts else replace(self, counts=counts)
 
@@ -163,6 +167,7 @@ class SitePlan:
     weather: Weather | None = None  # sky, sun and weather (generator/scene/weather.py)
     ground: GroundSurface | None = None  # what the ground is made of (generator/scene/catalogue/ground.py)
     relief: Relief | None = None  # digs and terrain (generator/scene/relief.py)
+    context: Context | None = None  # what surrounds the site (generator/scene/contexts.py)
 
     def buildings(self) -> list[dict]:
         """site.json's ``buildings``: per building (in placing order) its ``type``, levels
@@ -180,7 +185,7 @@ class SitePlan:
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
         params = asdict(self.params)
-        for name in ("counts", "weather", "ground", "building_type"):
+        for name in ("counts", "weather", "ground", "building_type", "context"):
             if not params[name]:
                 del params[name]  # the first release's sites have none: their site.json stays as it was
         added = {name: kind_named(name).module for name, (_, most) in self.params.counts if most > 0}
@@ -189,7 +194,8 @@ class SitePlan:
         timeline = {"stage": self.stage, "stages": self.stages} if self.stages > 1 else {}
         return ({"seed": self.seed, "params": params, "assets": kinds, "skipped": self.skipped,
                  "hook_height_m": self.hook_height, "weather": self.weather.summary(), "ground": self.ground.summary(),
-                 "relief": (self.relief or Relief()).summary(), "buildings": self.buildings()} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
+                 "relief": (self.relief or Relief()).summary(), "buildings": self.buildings(),
+                 "context": self.context.name if self.context else None} | timeline | ({"added_kinds": dict(sorted(added.items()))} if added else {}))
 
 
 def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) -> SitePlan:
@@ -206,7 +212,6 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
     for members in planning_groups(all_kinds()):
         members[0].place.plan(site, members)
     plan = site.plan
-    plan_terrain(plan, GROUND_MARGIN)
     for i, p in enumerate(plan.placed):
         p.uid = i + 1
     if stages > 1:
@@ -216,10 +221,12 @@ def plan_site(seed: int, params: SiteParams, stage: int = 0, stages: int = 1) ->
 
 
 def lay_out(seed: int, params: SiteParams, stage: int, stages: int) -> SiteState:
-    """The empty site: the road loop, the ground kept free (road, gate access), where props
-    go, and the planning state the kinds place themselves on."""
+    """The empty site: its context and the terrain beyond the fence, the road loop, the
+    ground kept free (road, gate access), where props go, and the planning state the kinds
+    place themselves on."""
     plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather),
-                    ground=choose_ground(seed, params.ground))
+                    ground=choose_ground(seed, params.ground), context=choose_context(seed, params.context))
+    plan_terrain(plan, GROUND_MARGIN, plan.context.terrain)  # before the kinds: the surroundings stand on it
     half = params.size / 2
     road_half = half - params.road_inset
     plan.road = road_loop(road_half, ROAD_CORNER_M)

@@ -6,10 +6,11 @@ Blender). docs/scenes.md, "Survey".
 
 Per seed: its buildings (type, levels built, planned and enclosed, height), the asset kinds and how many of each,
 the objects per taxonomy class (the plan's parts with a mesh: the site's Blender objects but
-the ground and fence), the ground's surface and road,
+the ground and fence), the context (what surrounds the site), the ground's surface and road,
 the relief's digs, the weather and the sun's elevation, and what found no room. In total:
 for each of these, on how many seeds each value occurs (and, for the kinds and classes, how
-many there are in all).
+many there are in all), and on how many seeds each class of MOCS and ACID that fits a
+building site appears (:data:`DETECTOR_CLASSES`: a mixer truck is a concrete mixer).
 """
 
 from __future__ import annotations
@@ -22,6 +23,19 @@ from pathlib import Path
 from .site import plan_site, site_params
 
 MAX_SURVEY = 10_000  # seeds in one report
+
+
+def _holds(label: str):
+    return lambda r: r["objects_per_class"].get(label, 0) > 0
+
+
+# the classes of MOCS and ACID that fit a building site, as a seed's record shows them
+DETECTOR_CLASSES = {
+    "worker": _holds("Worker"), "tower crane": _holds("Crane"), "mobile crane": _holds("MobileCrane"),
+    "excavator": _holds("Excavator"), "truck (dump)": lambda r: "dump" in r["truck_bodies"],
+    "concrete mixer": lambda r: "mixer" in r["truck_bodies"], "pump truck": _holds("PumpTruck"),
+    "roller": _holds("Roller"), "loader": _holds("Loader"), "pile driver": _holds("PileDriver"),
+}
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -46,6 +60,8 @@ def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
     return {"seed": seed, "buildings": summary["buildings"], "kinds": dict(sorted(summary["assets"].items())),
             "objects_per_class": dict(sorted(classes.items())), "ground": summary["ground"],
             "digs": [d["kind"] for d in summary["relief"]["digs"]], "weather": summary["weather"]["name"],
+            "context": summary["context"],
+            "truck_bodies": sorted(p.asset.info["kind"] for p in plan.placed if p.asset.kind == "Truck"),
             "sun_elevation_deg": round(summary["weather"]["sun_elevation_deg"], 2),
             "skipped": dict(sorted(summary["skipped"].items()))}
 
@@ -59,6 +75,7 @@ def totals(records: list[dict]) -> dict:
            "surface": seeds_with(r["ground"]["surface"] for r in records),
            "road": seeds_with(r["ground"]["road"] for r in records),
            "weather": seeds_with(r["weather"] for r in records),
+           "context": seeds_with(r["context"] for r in records),
            "digs": seeds_with(d for r in records for d in sorted(set(r["digs"]))),
            "buildings_per_site": seeds_with(len(r["buildings"]) for r in records),
            "building_type": seeds_with(t for r in records for t in sorted({b["type"] for b in r["buildings"]}))}
@@ -66,6 +83,7 @@ def totals(records: list[dict]) -> dict:
         out[field] = {name: {"seeds": sum(1 for r in records if r[field].get(name)),
                              "total": sum(r[field].get(name, 0) for r in records)}
                       for name in sorted({n for r in records for n in r[field]})}
+    out["detector_classes"] = {name: sum(1 for r in records if has(r)) for name, has in DETECTOR_CLASSES.items()}
     sun = sorted(r["sun_elevation_deg"] for r in records)
     out["sun_elevation_deg"] = {"min": sun[0], "median": sun[len(sun) // 2], "max": sun[-1]}
     return out
@@ -75,7 +93,7 @@ def markdown(total: dict, preset: str) -> str:
     """The totals as Markdown tables."""
     n = total["seeds"]
     lines = [f"# Survey of {n} seeds ({preset})", ""]
-    for field in ("surface", "road", "weather", "digs", "buildings_per_site", "building_type"):
+    for field in ("context", "surface", "road", "weather", "digs", "buildings_per_site", "building_type"):
         lines += [f"| {field} | seeds | share |", "|---|---|---|"]
         lines += [f"| {value} | {count} | {count / n:.0%} |" for value, count in total[field].items()]
         lines.append("")
@@ -83,6 +101,9 @@ def markdown(total: dict, preset: str) -> str:
         lines += [f"| {field} | seeds holding one | share | in all |", "|---|---|---|---|"]
         lines += [f"| {name} | {v['seeds']} | {v['seeds'] / n:.0%} | {v['total']} |" for name, v in total[field].items()]
         lines.append("")
+    lines += ["| MOCS / ACID class | seeds holding one | share |", "|---|---|---|"]
+    lines += [f"| {name} | {count} | {count / n:.0%} |" for name, count in total["detector_classes"].items()]
+    lines.append("")
     s = total["sun_elevation_deg"]
     lines.append(f"Sun elevation: {s['min']}-{s['max']} degrees, median {s['median']}.")
     if "preview_colour_spread" in total:

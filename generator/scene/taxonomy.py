@@ -3,7 +3,8 @@
 Object names carry their class (``Crane.003``), so a saved site reloads with the same
 labels; the site also stores this table in the scene's ``buildee_labels`` property, which
 makes the Simulator use these ids (see docs/scenes.md). The first release's classes
-(:data:`FIXED`) keep their ids for good; a class that a catalogue kind names and that is not
+and those added since (:data:`FIXED`, appended in the order they came) keep their ids for
+good; a class that a catalogue kind names and that is not
 among them (:class:`generator.scene.kinds.AssetKind` ``classes``) is appended after them,
 the new ones sorted by name, with the colour its kind declares.
 """
@@ -35,6 +36,16 @@ FIXED: tuple[tuple[str, tuple[int, int, int]], ...] = (  # (class, RGB 0-255 for
     ("Skip", (200, 160, 0)),             # 19 open skips / dumpsters
     ("Generator", (60, 160, 60)),        # 20 site power generators
     ("Worker", (255, 90, 200)),          # 21 people in hi-vis vests and hard hats
+    # added with the site kinds and surroundings (issue #39); appended, never reordered
+    ("MobileCrane", (255, 235, 120)),    # 22 truck-mounted telescopic cranes: carrier, outriggers, boom, hook
+    ("PumpTruck", (120, 60, 160)),       # 23 truck-mounted concrete pumps: carrier, outriggers, placing boom
+    ("Roller", (250, 140, 120)),         # 24 single-drum soil compactors
+    ("Loader", (200, 120, 0)),           # 25 wheel loaders: articulated body, arms, bucket
+    ("PileDriver", (130, 30, 90)),       # 26 piling rigs: tracks, body, leader mast, hammer or auger
+    ("Car", (0, 150, 200)),              # 27 parked cars beyond the fence
+    ("StreetLight", (250, 250, 120)),    # 28 street-light columns and lanterns
+    ("Vegetation", (60, 180, 60)),       # 29 trees and hedges
+    ("Neighbour", (120, 90, 150)),       # 30 finished buildings beyond the fence: walls, windows, roofs
 )
 
 
