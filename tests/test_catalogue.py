@@ -21,6 +21,7 @@ from generator.scene.kinds import AssetKind, all_kinds, all_materials, kind, reg
 from generator.scene.materials import Material
 from generator.scene.meshes import MeshBuilder
 from generator.scene.planning import Mix, Scatter
+from generator.scene.building_types import all_types
 from generator.scene.taxonomy import CLASSES, FIXED, added_classes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,16 +85,22 @@ def test_entries_are_found_by_scanning_their_package():
     # planning order: the first release's kinds in their fixed order, the mix as hand-written
     assert names[:7] == ["Ground", "Fence", "Building", "Crane", "Excavator", "SpoilHeap", "Truck"]
     assert [k.name for k in all_kinds() if isinstance(k.place, Mix)] == MIX_ORDER
-    # every kind is the first release's but the spoil heap, whose rule plans the digs: planned
-    # before the trucks and props (a pit needs room), from the seed's own relief streams
-    assert all(k.shared_streams and k.order < 1000 for k in all_kinds() if k.name != "SpoilHeap")
+    # the first release's kinds share the site's streams; the later ones draw from their own:
+    # the spoil heap (its rule plans the digs) and the machinery, planned before the trucks'
+    # and props' turn (they need room), and the surroundings, planned last
+    assert {k.name for k in all_kinds() if k.shared_streams} == set(names[:5]) | {"Truck"} | set(MIX_ORDER)
+    assert all(k.order < 1000 for k in all_kinds() if k.shared_streams)
+    surroundings = {"Neighbour", "Tree", "Hedge", "Street", "Car", "StreetLight"}
+    assert names[-len(surroundings):] == sorted(surroundings, key=lambda n: kind(n).order)
     assert not kind("SpoilHeap").shared_streams and kind("Excavator").order < kind("SpoilHeap").order < kind("Truck").order
 
 
 def test_presets_and_materials_come_from_the_entries():
     assert site_params("large").trucks == kind("Truck").counts["large"] == (3, 5)
     assert site_params("small").excavators == kind("Excavator").counts["small"] == (0, 1)
-    assert site_params("medium").buildings == (2, 2) and site_params("small").counts == ()
+    assert site_params("medium").buildings == (2, 2)
+    assert site_params("small").counts == tuple(sorted((k.name, k.counts["small"]) for k in all_kinds()
+                                                       if k.count_param is None and k.counts.get("small", (0, 0))[1] > 0))
     materials = all_materials()
     assert materials["sand"] is kind("SandPile").materials[0]
     assert {m.name for k in all_kinds() for m in k.materials} <= set(materials)
@@ -107,6 +114,11 @@ def test_presets_and_materials_come_from_the_entries():
             used.update(m for part in p.asset.parts if part.mesh is not None for m in part.mesh.materials)
             keyed = any(part.keys is not None for part in p.asset.parts)
             assert keyed == bool(kind(p.asset.kind).motion), p.asset.kind  # moves iff it declares how
+    for r in range(8):  # every building type's and neighbour style's drawn materials
+        for t in all_types():
+            used.update(t.build(np.random.default_rng(r), 0.6, (3, 5), 40.0, None).parts[0].mesh.materials)
+        for style in ("block", "house", "shed"):
+            used.update(kind("Neighbour").build(np.random.default_rng(r), style=style).parts[0].mesh.materials)
     assert used <= set(materials), used - set(materials)
     assert len(set(materials) - used) <= 3, set(materials) - used  # a few container colours may not show up
 
@@ -123,8 +135,9 @@ def test_a_disabled_new_kind_changes_no_plan(test_crate):
 
 def test_an_enabled_new_kind_draws_only_its_own_streams(test_crate):
     plain = plan_site(4, site_params("small", frames=20))
-    params = site_params("small", frames=20, counts={"TestCrate": (1, 3)})
-    assert params.counts == (("TestCrate", (1, 3)),)
+    preset = dict(site_params("small").counts)
+    params = site_params("small", frames=20, counts=preset | {"TestCrate": (1, 3)})
+    assert dict(params.counts) == preset | {"TestCrate": (1, 3)}
     plan = plan_site(4, params)
     crates = [i for i, p in enumerate(plan.placed) if p.asset.kind == "TestCrate"]
     before = [p for p in plain.placed if kind(p.asset.kind).order < test_crate.order]
@@ -133,8 +146,8 @@ def test_an_enabled_new_kind_draws_only_its_own_streams(test_crate):
     # many assets (the same prop kinds from the shared stream): it took none of its draws
     assert fingerprint(plan)[:crates[0]] == fingerprint(plain)[:crates[0]]
     assert {k: n for k, n in asked(plan).items() if k != "TestCrate"} == asked(plain)
-    assert plan.summary()["added_kinds"] == {"TestCrate": __name__}
-    assert "added_kinds" not in plain.summary() and "counts" not in plain.summary()["params"]
+    assert plan.summary()["added_kinds"] == plain.summary()["added_kinds"] | {"TestCrate": __name__}
+    assert "TestCrate" not in plain.summary()["added_kinds"]
     # over a timeline's stages the crates (no stage rule) stay where they are, with their uids
     crates = {p.uid: p.position for p in plan_site(4, params, 0, 2).placed if p.asset.kind == "TestCrate"}
     assert crates and {p.uid: p.position for p in plan_site(4, params, 1, 2).placed if p.asset.kind == "TestCrate"} == crates
@@ -211,8 +224,8 @@ def test_a_module_dropped_into_the_package_is_picked_up(tmp_path):
                        env=dict(os.environ, PYTHONPATH=str(tmp_path)))
     assert r.returncode == 0, r.stderr[-2000:]
     got = json.loads(r.stdout)
-    assert got["kinds"][-1] == "Drum" and got["classes"] == list(CLASSES) + ["Drum"] and got["drum"]
-    assert got["summary"]["assets"]["Drum"] == 1 and got["summary"]["added_kinds"] == {"Drum": "generator.scene.catalogue.drums"}
+    assert "Drum" in got["kinds"] and got["classes"] == list(CLASSES) + ["Drum"] and got["drum"]
+    assert got["summary"]["assets"]["Drum"] == 1 and got["summary"]["added_kinds"]["Drum"] == "generator.scene.catalogue.drums"
     plain = plan_site(2, site_params("small", frames=20))
-    assert got["placed"][:-1] == [[p.asset.kind, list(p.position), p.yaw] for p in plain.placed]
-    assert got["placed"][-1][0] == "Drum"
+    assert [p for p in got["placed"] if p[0] != "Drum"] == [[p.asset.kind, list(p.position), p.yaw] for p in plain.placed]
+    assert [p[0] for p in got["placed"]].count("Drum") == 1
