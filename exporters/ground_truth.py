@@ -158,6 +158,7 @@ def _write_scene_h5(folder: Path, parts: list[MeshPart], labels: list[str], labe
         dataset(g, "dynamic", np.array([p.dynamic for p in parts], bool))
         dataset(g, "closed", np.array([p.closed for p in parts], bool))
         dataset(g, "outward", np.array([p.outward for p in parts], np.int8))
+        dataset(g, "scenery", np.array([p.scenery for p in parts], bool))
         a = f.create_group("animation")
         dataset(a, "frames", np.asarray(frames))
         dataset(a, "dynamic_parts", np.asarray(dyn, np.int32))
@@ -321,11 +322,12 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
             a, s, cam = f["animation"], f["surface_points"], f["camera"]
             frames, dyn, mats = a["frames"][()], a["dynamic_parts"][()], a["world_from_object"][()]
             dynamic, closed, outward, label = (g[k][()] for k in ("dynamic", "closed", "outward", "label"))
+            scenery = g["scenery"][()] if "scenery" in g else np.zeros(len(names), bool)  # written since #39
             slot = {int(p): k for k, p in enumerate(dyn)}
             parts = [MeshPart(name=name, label=labels[int(label[i])], vertices=V[vo[i]:vo[i + 1]],
                               faces=F[fo[i]:fo[i + 1]].astype(np.int64), dynamic=bool(dynamic[i]),
                               matrix=mats[0, slot[i]].copy() if dynamic[i] else np.eye(4), closed=bool(closed[i]),
-                              outward=int(outward[i]), source=sources[i])
+                              outward=int(outward[i]), source=sources[i], scenery=bool(scenery[i]))
                      for i, name in enumerate(names)]
             surface = {k: s[k][()] for k in ("local", "local_normals", "part", "label", "observable") if k in s}
             viewpoints = f["observability/viewpoints"][()] if "observability" in f else None

@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 
 import bpy
@@ -17,6 +18,7 @@ from generator.geometry.parts import MeshPart, closed_and_orientation
 from generator.geometry.raycast import SceneGeometry
 from generator.geometry.sampling import sample_triangles
 from generator.scene import CLASSES, build_site, plan_site, site_params
+from generator.blender.extract import SCENERY_PROPERTY
 from generator.scene.kinds import all_kinds
 from generator.scene.planning import Mix
 
@@ -32,11 +34,12 @@ def small_site(tmp_path_factory):
 
 def _asset_triangles():
     """World triangles of every placed asset of the open file at the current frame, by asset
-    index (-1: ground and fence), with each object's closedness."""
+    index (-1: ground and fence), with each object's closedness; not the scenery beyond the
+    fence (it stands on the terrain there: tests/test_surroundings.py)."""
     depsgraph = bpy.context.evaluated_depsgraph_get()
     out: dict[int, list] = {}
     for obj in bpy.data.objects:
-        if obj.type != "MESH" or obj.name == "CameraSpawn":
+        if obj.type != "MESH" or obj.name == "CameraSpawn" or obj.get(SCENERY_PROPERTY):
             continue
         ev = obj.evaluated_get(depsgraph)
         me = ev.data
@@ -145,7 +148,7 @@ def test_surface_points_lie_on_surfaces_cameras_can_reach(small_site):
 
     sim = Simulator(small_site.blend, points_density=5.0)
     parts = sim.scene_parts()
-    ground = [p for p in parts if p.label == "Ground" and not p.closed]
+    ground = [p for p in parts if p.label == "Ground" and not p.closed and not p.scenery]
     assert len(ground) == 1 and len(ground[0].faces) > 2  # cut where its material changes
     assert ground_height(parts) == 0.0 and ground[0].vertices[:, 2].min() < -0.03  # ruts at least
     v, f = ground[0].vertices, ground[0].faces
@@ -239,9 +242,30 @@ def test_crane_trolleys_travel_at_a_crane_speed_whatever_the_animation_length():
     assert moved > 5.0  # and it does travel
 
 
+def test_scenery_is_in_the_scene_but_carries_no_points(small_site):
+    """The surroundings (generator/scene/surroundings.py) are parts of the scene (rendered,
+    in visibility and collisions) flagged as scenery: no surface point, no scoring point."""
+    from exporters.ground_truth import sample_scoring_points
+
+    sim = Simulator(small_site.blend, points_density=2.0)
+    parts = sim.scene_parts()
+    scenery = [i for i, p in enumerate(parts) if p.scenery]
+    assert scenery and {parts[i].label for i in scenery} >= {"Ground", "Vegetation"}  # a street, trees or hedges
+    assert not any(p.scenery for p in parts if p.label in ("Building", "Fence", "Crane"))
+    assert len([p for p in parts if p.label == "Ground" and not p.scenery]) == 1
+    assert not np.isin(sim.surface_sample()["part"], scenery).any()
+    scoring = sample_scoring_points(parts, sim.label_ids, 5.0, 0)
+    assert not np.isin(scoring["instance"], scenery).any() and len(scoring["xyz"]) > 1000
+    # negative control: the same part unflagged gets points
+    tree = parts[scenery[-1]]
+    assert len(sample_scoring_points([replace(tree, scenery=False)], sim.label_ids, 5.0, 0)["xyz"]) > 0
+
+
 def test_every_class_appears_across_a_few_seeds():
     seen = set()
-    for seed in (0, 1, 2, 3):
+    for seed in range(12):
+        if seen >= set(CLASSES) - {"Ground", "Fence"}:
+            break
         plan = plan_site(seed, site_params("medium"))
         for placed in plan.placed:
             seen.update(p.label for p in placed.asset.parts if p.label)

@@ -11,11 +11,13 @@ from bpy_extras import anim_utils
 
 from ..geometry.portable_math import atan2, hypot, sincos
 from ..scene.assets import Asset
+from ..scene.kinds import kind as kind_named
 from ..scene.meshes import MeshData
 from ..scene.site import SitePlan, fence_part, site_ground, wet_materials
 from ..scene.timeline import object_name
 from ..scene.taxonomy import CLASSES
 from . import session
+from .extract import SCENERY_PROPERTY
 from .materials import make_material
 from .render import apply_settings, resolve_settings
 from .sky import build_sky
@@ -79,6 +81,10 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
     objects = []
     s, c = sincos(yaw)
     px, py = position
+    try:
+        scenery = kind_named(asset.kind).scenery
+    except KeyError:  # an asset of no registered kind
+        scenery = False
     for number, part in enumerate(asset.parts):
         name = part.label or f"{asset.kind}Pivot"
         if uid is not None:
@@ -118,6 +124,8 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
         if data is None:
             obj.empty_display_size = 1.0
         obj["buildee_group"] = asset.kind
+        if scenery:
+            obj[SCENERY_PROPERTY] = True  # rendered, no surface points (generator/geometry/parts.py MeshPart.scenery)
         obj["buildee_asset"] = index  # which placed asset the object belongs to (-1: ground, fence)
         objects.append(obj)
     return objects

@@ -22,6 +22,7 @@ from .keys import instance_key, object_key
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SPAWN_LABEL = "CameraSpawn"
+SCENERY_PROPERTY = "buildee_scenery"  # an object property: the object is scenery (MeshPart.scenery)
 _SUFFIX = re.compile(r"\.\d{3,}$")
 
 
@@ -184,6 +185,7 @@ class _Found:
     driver: str
     parent_world: np.ndarray | None
     source: str | None
+    scenery: bool = False  # the object's (or its instancer's) ``buildee_scenery`` property (MeshPart.scenery)
 
 
 def _instance(inst, scene, dynamic: set[str], memo: dict) -> tuple[_Found, str | None]:
@@ -197,7 +199,8 @@ def _instance(inst, scene, dynamic: set[str], memo: dict) -> tuple[_Found, str |
                    f"{scene.frame_start}-{scene.frame_end}; copies are taken once at load: use Physics 'None' "
                    "with every particle alive over those frames, or hair")
     found = _Found(instance_key(parent.name, obj.name, pid), obj.name, _matrix(inst.matrix_world),
-                   parent.name in dynamic or source is not None, parent.name, _matrix(inst.parent.matrix_world), source)
+                   parent.name in dynamic or source is not None, parent.name, _matrix(inst.parent.matrix_world), source,
+                   bool(parent.get(SCENERY_PROPERTY) or obj.get(SCENERY_PROPERTY)))
     return found, refusal
 
 
@@ -234,8 +237,10 @@ def extract_parts() -> ExtractedScene:
             f, refusal = _instance(inst, scene, dynamic, memo)
             refusals.append(refusal)
         else:
-            name = _original(inst.object).name
-            f = _Found(object_key(name), name, _matrix(inst.matrix_world), name in dynamic, name, None, None)
+            original = _original(inst.object)
+            name = original.name
+            f = _Found(object_key(name), name, _matrix(inst.matrix_world), name in dynamic, name, None, None,
+                       bool(original.get(SCENERY_PROPERTY)))
         refusals.append(_holdout(inst, flags))
         verts, faces, closed, outward = _evaluated_mesh(inst.object, cache)
         if len(faces) == 0:
@@ -302,12 +307,12 @@ def _parts_of(found, depsgraph) -> tuple[list[MeshPart], list[DynamicBinding]]:
             source = objects[f.source] if f.source is not None else None
             offset = _offset(f.world, f.parent_world, source, depsgraph)
             bindings.append(DynamicBinding(len(parts), f.driver, offset, f.source, objects[f.driver], source))
-            parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name))
+            parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name, f.scenery))
         else:
             wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
             if np.linalg.det(f.world[:3, :3]) < 0:
                 outward = -outward  # a mirroring matrix flips the winding
-            parts.append(MeshPart(f.key, label, wv, faces, False, np.eye(4), closed, outward, f.name))
+            parts.append(MeshPart(f.key, label, wv, faces, False, np.eye(4), closed, outward, f.name, f.scenery))
     return parts, bindings
 
 

@@ -17,7 +17,10 @@ class MeshPart:
     keep their object frame and ``matrix`` (4x4, world_from_object) follows the animation.
     ``closed`` means every edge is shared by exactly two consistently oriented faces, so the
     part bounds a solid; ``outward`` is +1 if face normals (right-hand rule) point out of
-    that solid, -1 if they point in.
+    that solid, -1 if they point in. ``scenery``: the part is scenery (its Blender object's
+    ``buildee_scenery`` property: the surroundings beyond a generated site's fence): it is
+    rendered, seen in every per-pixel ground truth and takes part in visibility and
+    collisions, but carries no surface or scoring points.
     """
 
     name: str
@@ -29,6 +32,7 @@ class MeshPart:
     closed: bool = False
     outward: int = 1
     source: str = ""  # name of the Blender object the triangles come from
+    scenery: bool = False
 
     def world_vertices(self) -> np.ndarray:
         """(V, 3) float64 world positions, the same bits on every CPU (camera.rows_times)."""

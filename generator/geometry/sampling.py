@@ -103,7 +103,10 @@ def contact_faces(part: MeshPart, ground_z: float | None) -> np.ndarray:
 def sample_part(part: MeshPart, density: float, rng: np.random.Generator,
                 ground_z: float | None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`sample_triangles` on a part's faces minus its :func:`contact_faces`, in the
-    part's own frame. Returns ``(points (n, 3), face_index (n,) into part.faces)``."""
+    part's own frame. Returns ``(points (n, 3), face_index (n,) into part.faces)``; none on
+    a scenery part (:class:`~.parts.MeshPart`)."""
+    if part.scenery:
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     keep = np.flatnonzero(~contact_faces(part, ground_z))
     pts, face = sample_triangles(part.vertices, np.asarray(part.faces)[keep], density, rng)
     return pts, keep[face]

@@ -33,7 +33,7 @@ class SurfacePoints:
         start = 0
         ground_z = ground_height(parts)
         area = sum(float(triangle_areas(np.asarray(p.vertices, np.float64), np.asarray(p.faces, np.int64)).sum())
-                   for p in parts if len(p.faces))
+                   for p in parts if len(p.faces) and not p.scenery)
         if density * area > MAX_POINTS:
             raise ValueError(f"points density {density:g} per m^2: this scene has {area:,.0f} m^2 of surface, so about "
                              f"{density * area:,.0f} points; the limit is {MAX_POINTS:,} (lower the density)")

@@ -46,6 +46,9 @@ class AssetKind:
     - ``stage``: how it changes between the stages of a timeline (a rule of
       :mod:`.timeline`; None: it stays as it is).
     - ``colour``: RGB 0-255 of a new class in maps and figures.
+    - ``scenery``: it stands beyond the fence as scenery (the surroundings): rendered and in
+      every per-pixel ground truth, but without surface or scoring points (the point clouds
+      cover the site; :class:`generator.geometry.parts.MeshPart` ``scenery``).
     - ``shared_streams``: True only for the kinds of the first release, whose counts, prop
       mix and per-stage draws come from the site's shared streams in ``order`` (which is
       why their order is fixed); a new kind leaves it False and draws only from streams
@@ -64,6 +67,7 @@ class AssetKind:
     stage: Any = None
     colour: tuple[int, int, int] | None = None
     shared_streams: bool = False
+    scenery: bool = False
     module: str = ""  # the module that registered it (set by :func:`register`)
 
     @property

@@ -120,7 +120,7 @@ def wall(name: str, colour, stretch=(1.0, 1.0, 1.0)) -> Material:
 
 
 register(AssetKind(
-    name="Neighbour", classes=("Neighbour",), build=neighbour, place=SURROUNDINGS, order=2000,
+    name="Neighbour", classes=("Neighbour",), build=neighbour, place=SURROUNDINGS, scenery=True, order=2000,
     materials=(wall("render_white", (0.7, 0.68, 0.62)), wall("render_cream", (0.62, 0.5, 0.32)),
                wall("render_ochre", (0.55, 0.3, 0.12)), wall("render_grey", (0.36, 0.36, 0.35)),
                wall("shed_green", (0.1, 0.25, 0.15), (1.0, 1.0, 30.0)), wall("shed_blue", (0.08, 0.18, 0.4), (1.0, 1.0, 30.0)),

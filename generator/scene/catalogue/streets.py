@@ -130,18 +130,18 @@ def paint(name: str, colour) -> Material:
 
 
 register(AssetKind(
-    name="Street", classes=("Ground",), build=street, place=SURROUNDINGS, order=2003,
+    name="Street", classes=("Ground",), build=street, place=SURROUNDINGS, scenery=True, order=2003,
     materials=(Material("paving", (0.42, 0.4, 0.37), 0.85, 0.0, Pattern(2.5, (0.3, 0.29, 0.27), 0.35, kind="voronoi"),
                         layers=(Pattern(15.0, (0.5, 0.48, 0.45), 0.3, detail=2.0),), planar=True),
                Material("kerb", (0.5, 0.49, 0.46), 0.8, 0.0, Pattern(8.0, (0.36, 0.35, 0.33), 0.4)),
                Material("marking", (0.75, 0.75, 0.72), 0.6, 0.0, Pattern(10.0, (0.4, 0.4, 0.38), 0.35), planar=True)),
 ))
 register(AssetKind(
-    name="Car", classes=("Car",), build=car, place=SURROUNDINGS, order=2004,
+    name="Car", classes=("Car",), build=car, place=SURROUNDINGS, scenery=True, order=2004,
     materials=tuple(paint(n, c) for n, c in zip(CAR_PAINTS, ((0.5, 0.03, 0.02), (0.75, 0.75, 0.73), (0.42, 0.43, 0.45),
                                                               (0.02, 0.02, 0.025), (0.04, 0.1, 0.35), (0.05, 0.2, 0.1))))
     + (Material("tail_light", (0.6, 0.02, 0.01), 0.3),),
 ))
 register(AssetKind(
-    name="StreetLight", classes=("StreetLight",), build=street_light, place=SURROUNDINGS, order=2005,
+    name="StreetLight", classes=("StreetLight",), build=street_light, place=SURROUNDINGS, scenery=True, order=2005,
 ))

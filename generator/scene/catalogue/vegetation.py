@@ -86,13 +86,13 @@ def foliage(name: str, colour, dark) -> Material:
 
 
 register(AssetKind(
-    name="Tree", classes=("Vegetation",), build=tree, place=SURROUNDINGS, order=2001,
+    name="Tree", classes=("Vegetation",), build=tree, place=SURROUNDINGS, scenery=True, order=2001,
     materials=(Material("bark", (0.1, 0.07, 0.05), 0.9, 0.0, Pattern(8.0, (0.05, 0.04, 0.03), 0.6, stretch=(1.0, 1.0, 6.0))),
                foliage("foliage", (0.06, 0.14, 0.03), (0.02, 0.05, 0.01)),
                foliage("foliage_light", (0.12, 0.2, 0.04), (0.04, 0.08, 0.015)),
                foliage("foliage_dark", (0.03, 0.08, 0.03), (0.01, 0.03, 0.01))),
 ))
 register(AssetKind(
-    name="Hedge", classes=("Vegetation",), build=hedge, place=SURROUNDINGS, order=2002,
+    name="Hedge", classes=("Vegetation",), build=hedge, place=SURROUNDINGS, scenery=True, order=2002,
     materials=(foliage("hedge", (0.05, 0.11, 0.025), (0.015, 0.04, 0.01)),),
 ))
