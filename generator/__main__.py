@@ -25,7 +25,7 @@ from .scene.site import PRESETS as SCENE_PRESETS
 from .scene.building_types import all_types
 from .scene.catalogue.ground import SURFACES
 from .scene.contexts import CONTEXTS
-from .scene.weather import WEATHERS
+from .scene.weather import SEASONS, WEATHERS
 from exporters.modalities import MODALITIES
 from exporters.sinks import export_options
 
@@ -64,6 +64,9 @@ def _add_site_arguments(p) -> None:
                         "docs/scenes.md)")
     p.add_argument("--context", choices=list(CONTEXTS), default=None,
                    help="what surrounds every site: " + ", ".join(CONTEXTS) + " (default: drawn per seed; docs/scenes.md)")
+    p.add_argument("--season", choices=list(SEASONS), default=None,
+                   help="the season of every site: " + ", ".join(SEASONS) + " (snow: a winter with snow lying; default: "
+                        "drawn per seed; docs/scenes.md)")
 
 
 def _add_rerun_arguments(p) -> None:
@@ -139,7 +142,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
                             phases=args.phases, weather=args.weather, ground=args.ground,
-                            building_type=args.building_type, context=args.context, exports={o.dest: getattr(args, o.dest) for o in export_options()})
+                            building_type=args.building_type, context=args.context, season=args.season, exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:

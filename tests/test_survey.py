@@ -26,6 +26,13 @@ def test_the_survey_reports_each_plan_and_adds_them_up(tmp_path):
     assert record["ground"] == {"surface": plan.ground.surface, "road": plan.ground.road}
     assert record["weather"] == plan.weather.name and record["digs"] == [d.kind for d in plan.relief.digs]
     assert len(record["buildings"]) == sum(p.asset.kind == "Building" for p in plan.placed)
+    assert record["context"] == plan.context.name and record["season"] == plan.weather.season
+    mixers = sum(p.asset.kind == "Truck" and p.asset.info["kind"] == "mixer" for p in plan.placed)
+    assert sorted(record["truck_bodies"]).count("mixer") == mixers
+    for name, count in totals["detector_classes"].items():  # a seed holding one, per MOCS / ACID class
+        assert 0 <= count <= 4, name
+    assert totals["detector_classes"]["tower crane"] == sum(1 for x in records if x["objects_per_class"].get("Crane"))
+    assert sum(totals["context"].values()) == 4 and sum(totals["season"].values()) == 4
     for kind, v in totals["kinds"].items():
         assert v["total"] == sum(x["kinds"].get(kind, 0) for x in records)
         assert v["seeds"] == sum(1 for x in records if x["kinds"].get(kind))

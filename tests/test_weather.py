@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, assert_refused
-from generator.scene.weather import SUN_ELEVATION_DEG, WEATHERS, WET_EXPOSURE_EV, choose_weather
+from generator.scene.weather import SEASONS, SUN_ELEVATION_DEG, WEATHERS, WET_EXPOSURE_EV, choose_season, choose_weather
 
 
 def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_rest():
@@ -40,6 +40,22 @@ def test_seeds_0_to_99_cover_four_skies_and_the_sun_from_dawn_to_midday():
     assert lo <= elevations.min() < lo + 5 and hi - 5 < elevations.max() <= hi
 
 
+def test_seasons_are_drawn_from_their_own_stream_and_snow_never_follows_rain():
+    weathers = [choose_weather(seed) for seed in range(200)]
+    seasons = Counter(w.season for w in weathers)
+    assert set(seasons) == set(SEASONS) and min(seasons.values()) >= 10
+    for seed, w in enumerate(weathers[:40]):
+        assert (w.snow_cover > 0) == (w.season == "snow") and (w.snow_cover == 0 or 0.5 <= w.snow_cover <= 0.95)
+        assert not (w.season == "snow" and w.name == "after-rain")
+        for season in SEASONS:  # fixing the season moves no draw of the weather
+            fixed = choose_weather(seed, season=season)
+            assert fixed.sun_elevation_deg == w.sun_elevation_deg and fixed.name == w.name
+            assert fixed.season == (season if not (season == "snow" and w.name == "after-rain") else "winter")
+    assert choose_season(3, "after-rain", "snow") == ("winter", 0.0)  # a thaw
+    with pytest.raises(ValueError, match="^unknown season 'monsoon'; choose one of spring, summer"):
+        choose_weather(1, season="monsoon")
+
+
 def test_an_unknown_weather_is_one_line_and_exit_2(tmp_path):
     for module in ("generator", "generator.scene --seed 1"):
         assert_refused(subprocess.run([sys.executable, "-m", *module.split(), "--out", str(tmp_path / "x"), "--weather",
@@ -55,13 +71,15 @@ def renders(tmp_path_factory):
     import bpy
 
     from generator import Simulator
+    from generator.blender.season import SNOW_LABEL
     from generator.blender.sky import PUDDLES, fog_of_scene
     from generator.geometry.camera import look_at
     from generator.scene import build_site
 
     out = {}
-    for name in ("overcast", "fog", "after-rain"):
-        site = build_site(5, "small", tmp_path_factory.mktemp(name), preview=False, weather=name)
+    for name in ("overcast", "fog", "after-rain", "snow"):
+        weather, season = ("overcast", "snow") if name == "snow" else (name, "summer")
+        site = build_site(5, "small", tmp_path_factory.mktemp(name), preview=False, weather=weather, season=season)
         sim = Simulator(site.blend, points_density=0.05, seed=5, render_preset="preview")
         sim.configure_render(resolution=(64, 48))
         lo, _ = site.plan.spawn_box
@@ -69,19 +87,21 @@ def renders(tmp_path_factory):
         render = sim.render()
         ground = next(m for o in bpy.context.scene.objects if o.name.startswith("Ground") for m in o.data.materials)
         held = {"fog": fog_of_scene(bpy.context.scene),
-                "wet": any(n.label == PUDDLES for n in ground.node_tree.nodes)}
+                "wet": any(n.label == PUDDLES for n in ground.node_tree.nodes),
+                "snow": any(n.label == SNOW_LABEL for n in ground.node_tree.nodes)}
         out[name] = (site, sim, render, held)
     return out
 
 
 def test_site_json_records_the_weather_and_the_ground_truth_does_not_change(renders):
-    (site_o, sim_o, o, _), (site_f, sim_f, f, _), (site_w, sim_w, w, _) = (
-        renders[n] for n in ("overcast", "fog", "after-rain"))
+    (site_o, sim_o, o, _), (site_f, sim_f, f, _), (site_w, sim_w, w, _), (site_s, sim_s, s, _) = (
+        renders[n] for n in ("overcast", "fog", "after-rain", "snow"))
     for site, name in ((site_o, "overcast"), (site_f, "fog"), (site_w, "after-rain")):
         recorded = json.loads((site.blend.parent / "site.json").read_text())
         assert recorded["weather"]["name"] == name and recorded["params"]["weather"] == name
         assert recorded["weather"]["sun_elevation_deg"] == site.plan.weather.sun_elevation_deg
-    for other, sim in ((f, sim_f), (w, sim_w)):
+    assert json.loads((site_s.blend.parent / "site.json").read_text())["weather"]["season"] == "snow"
+    for other, sim in ((f, sim_f), (w, sim_w), (s, sim_s)):
         np.testing.assert_array_equal(other.depth, o.depth)
         np.testing.assert_array_equal(other.seg, o.seg)
         np.testing.assert_array_equal(other.instance, o.instance)
@@ -120,3 +140,20 @@ def test_fog_mixes_each_pixel_with_the_fog_colour_by_the_transmittance_along_its
 
 def test_wet_ground_has_puddles_and_dry_ground_has_none(renders):
     assert renders["after-rain"][3]["wet"] and not renders["overcast"][3]["wet"]
+
+
+def test_snow_whitens_level_ground_and_leaves_the_rest(renders):
+    """The same view, overcast, in summer and with snow lying: level ground pixels get brighter
+    (snow on about half of it or more), the sky does not change (to the denoiser's mixing)."""
+    (_, _, summer, held_o), (_, _, snowy, held_s) = renders["overcast"], renders["snow"]
+    assert held_s["snow"] and not held_o["snow"]
+    sky = np.isinf(summer.depth)
+    np.testing.assert_allclose(snowy.rgb_linear[sky].mean(axis=0), summer.rgb_linear[sky].mean(axis=0), rtol=0.05)  # the denoiser mixes neighbours
+    ground = summer.seg == summer_ground_id(renders)
+    assert ground.sum() > 200
+    brighter = snowy.rgb_linear[ground].mean(axis=1) > summer.rgb_linear[ground].mean(axis=1) * 1.5
+    assert brighter.mean() > 0.3, brighter.mean()
+
+
+def summer_ground_id(renders) -> int:
+    return renders["overcast"][1].label_ids["Ground"]

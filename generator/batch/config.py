@@ -11,7 +11,7 @@ from ..render_settings import check_side
 from ..scene.building_types import check_building_type
 from ..scene.contexts import check_context
 from ..scene.catalogue.ground import check_surface
-from ..scene.weather import check_weather
+from ..scene.weather import check_season, check_weather
 
 # Bounds on what a run accepts, checked before any work (docs/guarantees.md).
 MAX_PIXELS = 3840 * 2160  # 4K UHD: a render peaks at ~920 bytes a pixel (measured), ~7.6 GB here
@@ -22,7 +22,7 @@ MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every 
 MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may get from the densities
 
 
-IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None}  # config keys a manifest leaves out when they hold these values
+IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -52,11 +52,12 @@ class RunConfig:
     ground: str | None = None  # every seed's ground surface (generator/scene/catalogue/ground.py); None: drawn per seed
     building_type: str | None = None  # every building's type (generator/scene/building_types/); None: drawn per building
     context: str | None = None  # every seed's context (generator/scene/contexts.py); None: drawn per seed
+    season: str | None = None  # every seed's season (generator/scene/weather.py); None: drawn per seed
 
     def site_overrides(self) -> dict:
         """The site parameters this run sets for every seed (given to build_site)."""
         return {"weather": self.weather, "ground": self.ground, "building_type": self.building_type,
-                "context": self.context}
+                "context": self.context, "season": self.season}
 
     def validated(self) -> "RunConfig":
         """Self, or ValueError naming the first value outside what a run can honour."""
@@ -71,6 +72,7 @@ class RunConfig:
         check_surface(self.ground)
         check_building_type(self.building_type)
         check_context(self.context)
+        check_season(self.season)
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
             raise ValueError("--phases needs the outputs depth and instance (the change masks are made from them); "
                              "add them to --outputs")

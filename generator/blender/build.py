@@ -20,6 +20,7 @@ from . import session
 from .extract import SCENERY_PROPERTY
 from .materials import make_material
 from .render import apply_settings, resolve_settings
+from .season import apply_season
 from .sky import build_sky
 
 LABEL_TABLE_PROPERTY = "buildee_labels"
@@ -152,6 +153,7 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
             add_asset(placed.asset, placed.position, placed.yaw, seed, _collection(placed.asset.kind), index,
                       uid=placed.uid if timeline else None)
         build_sky(plan.weather, [make_material(m, seed) for m in wet_materials(ground)])
+        apply_season(plan.weather.season, plan.weather.snow_cover)
         lo, hi = plan.spawn_box
         spawn = bpy.data.objects.new("CameraSpawn", mesh_from_data("CameraSpawn", _box_data(lo, hi), seed))
         scene.collection.objects.link(spawn)

@@ -15,7 +15,7 @@ from .catalogue.ground import SURFACES
 from .contexts import CONTEXTS
 from .site import LAYOUTS, PRESETS
 from .timeline import MAX_STAGES
-from .weather import WEATHERS
+from .weather import SEASONS, WEATHERS
 
 
 def main(argv=None) -> int:
@@ -41,6 +41,8 @@ def main(argv=None) -> int:
     p.add_argument("--building-type", choices=[t.name for t in all_types()],
                    help="the type of every building (default: drawn per building; docs/scenes.md)")
     p.add_argument("--context", choices=list(CONTEXTS), help="what surrounds the site (default: drawn per seed; docs/scenes.md)")
+    p.add_argument("--season", choices=list(SEASONS), help="the season; snow: a winter with snow lying (default: drawn per seed; "
+                                                         "docs/scenes.md)")
     p.add_argument("--no-preview", action="store_true", help="skip the preview render")
     p.add_argument("--previews", action="store_true",
                    help="with --survey: also build every seed and keep its preview, its colour and a contact sheet "
@@ -53,7 +55,7 @@ def main(argv=None) -> int:
         p.error("--previews goes with --survey A-B (one site always has its preview)")
     if args.stage >= args.stages:
         p.error(f"--stage {args.stage} is outside the timeline's stages 0 to {args.stages - 1}")
-    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather", "ground", "building_type", "context") if getattr(args, k) is not None}
+    overrides = {k: getattr(args, k) for k in ("size", "density", "layout", "phase", "frames", "weather", "ground", "building_type", "context", "season") if getattr(args, k) is not None}
     from . import build_site
 
     from exporters.write_guard import WriteRefused, claim_folder

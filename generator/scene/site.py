@@ -28,7 +28,7 @@ from .placement import PlacedAsset, Placer, SiteArea  # noqa: F401  (PlacedAsset
 from .planning import SiteState
 from .relief import Relief, plan_terrain
 from .timeline import advance, check_stage
-from .weather import Weather, check_weather, choose_weather
+from .weather import Weather, check_season, check_weather, choose_weather
 
 LAYOUTS = ("grid", "scattered", "clustered")
 GATE = (-4.0, 4.0)  # x range of the gate in the south fence, metres
@@ -49,7 +49,8 @@ class SiteParams:
     state of generator/scene/weather.py, ground: a surface of generator/scene/catalogue/ground.py
     (None: drawn per seed); building_type: a type of generator/scene/building_types/ for every
     building (None: drawn per building); context: a kind of generator/scene/contexts.py, what
-    surrounds the site (None: drawn per seed).
+    surrounds the site (None: drawn per seed); season: a season of generator/scene/weather.py
+    (None: drawn per seed).
     """
 
     size: float = 100.0
@@ -68,6 +69,7 @@ class SiteParams:
     ground: str | None = None
     building_type: str | None = None
     context: str | None = None
+    season: str | None = None
 
     @property
     def min_size(self) -> float:
@@ -91,6 +93,7 @@ class SiteParams:
         check_surface(self.ground)
         check_building_type(self.building_type)
         check_context(self.context)
+        check_season(self.season)
         counts = checked_counts(self.counts)
         return self if counts == self.counts else replace(self, counts=counts)
 
@@ -185,7 +188,7 @@ class SitePlan:
         for p in self.placed:
             kinds[p.asset.kind] = kinds.get(p.asset.kind, 0) + 1
         params = asdict(self.params)
-        for name in ("counts", "weather", "ground", "building_type", "context"):
+        for name in ("counts", "weather", "ground", "building_type", "context", "season"):
             if not params[name]:
                 del params[name]  # the first release's sites have none: their site.json stays as it was
         added = {name: kind_named(name).module for name, (_, most) in self.params.counts if most > 0}
@@ -224,7 +227,7 @@ def lay_out(seed: int, params: SiteParams, stage: int, stages: int) -> SiteState
     """The empty site: its context and the terrain beyond the fence, the road loop, the
     ground kept free (road, gate access), where props go, and the planning state the kinds
     place themselves on."""
-    plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather),
+    plan = SitePlan(seed, params, stage=stage, stages=stages, weather=choose_weather(seed, params.weather, params.season),
                     ground=choose_ground(seed, params.ground), context=choose_context(seed, params.context))
     plan_terrain(plan, GROUND_MARGIN, plan.context.terrain)  # before the kinds: the surroundings stand on it
     half = params.size / 2

@@ -6,7 +6,7 @@ Blender). docs/scenes.md, "Survey".
 
 Per seed: its buildings (type, levels built, planned and enclosed, height), the asset kinds and how many of each,
 the objects per taxonomy class (the plan's parts with a mesh: the site's Blender objects but
-the ground and fence), the context (what surrounds the site), the ground's surface and road,
+the ground and fence), the context (what surrounds the site), the season, the ground's surface and road,
 the relief's digs, the weather and the sun's elevation, and what found no room. In total:
 for each of these, on how many seeds each value occurs (and, for the kinds and classes, how
 many there are in all), and on how many seeds each class of MOCS and ACID that fits a
@@ -60,7 +60,7 @@ def seed_record(seed: int, preset: str = "medium", **overrides) -> dict:
     return {"seed": seed, "buildings": summary["buildings"], "kinds": dict(sorted(summary["assets"].items())),
             "objects_per_class": dict(sorted(classes.items())), "ground": summary["ground"],
             "digs": [d["kind"] for d in summary["relief"]["digs"]], "weather": summary["weather"]["name"],
-            "context": summary["context"],
+            "context": summary["context"], "season": summary["weather"]["season"],
             "truck_bodies": sorted(p.asset.info["kind"] for p in plan.placed if p.asset.kind == "Truck"),
             "sun_elevation_deg": round(summary["weather"]["sun_elevation_deg"], 2),
             "skipped": dict(sorted(summary["skipped"].items()))}
@@ -76,6 +76,7 @@ def totals(records: list[dict]) -> dict:
            "road": seeds_with(r["ground"]["road"] for r in records),
            "weather": seeds_with(r["weather"] for r in records),
            "context": seeds_with(r["context"] for r in records),
+           "season": seeds_with(r["season"] for r in records),
            "digs": seeds_with(d for r in records for d in sorted(set(r["digs"]))),
            "buildings_per_site": seeds_with(len(r["buildings"]) for r in records),
            "building_type": seeds_with(t for r in records for t in sorted({b["type"] for b in r["buildings"]}))}
@@ -93,7 +94,7 @@ def markdown(total: dict, preset: str) -> str:
     """The totals as Markdown tables."""
     n = total["seeds"]
     lines = [f"# Survey of {n} seeds ({preset})", ""]
-    for field in ("context", "surface", "road", "weather", "digs", "buildings_per_site", "building_type"):
+    for field in ("context", "season", "surface", "road", "weather", "digs", "buildings_per_site", "building_type"):
         lines += [f"| {field} | seeds | share |", "|---|---|---|"]
         lines += [f"| {value} | {count} | {count / n:.0%} |" for value, count in total[field].items()]
         lines.append("")

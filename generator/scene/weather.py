@@ -15,6 +15,12 @@ stream (no other stream moves, so the layout of a site does not depend on its we
 - ``after-rain``: an overcast or cloudy sky and wet ground (darker, glossier, with puddles).
 
 Sun elevations are uniform in [5, 80] degrees (dawn to midday), azimuths in [0, 360).
+
+A seed also draws its **season** (:data:`SEASONS`, ``--season NAME`` fixes it) from its own
+``season`` stream: spring, summer, autumn and winter colour the leaves and the grass
+(:mod:`generator.blender.season`), and ``snow`` is a winter with snow lying on every
+upward face (``snow_cover`` of it, 0.5-0.95, in patches), except after rain (a thaw: then
+it is winter without snow).
 Weather changes what the cameras see, never the geometry: depth, labels, instances,
 normals, flow, points, boxes and every other ground-truth output are the same whatever the
 weather (docs/scenes.md, "Sky, light and weather").
@@ -40,6 +46,9 @@ WEATHERS = {
 }
 # metres: fog of meteorological visibility 150-600 m (thick to light fog)
 FOG_VISIBILITY_M = (150.0, 600.0)
+# season: share of seeds (a year's four seasons alike; half the winters with snow lying)
+SEASONS = {"spring": 0.25, "summer": 0.25, "autumn": 0.25, "winter": 0.125, "snow": 0.125}
+SNOW_COVER = (0.5, 0.95)  # share of the upward faces under snow
 
 
 @dataclass(frozen=True)
@@ -51,7 +60,9 @@ class Weather:
     share of the sky covered by clouds (1 for overcast); ``fog_visibility_m``: meteorological
     visibility in metres (None: no fog); ``wetness``: 0 dry ground to 1 soaked, with puddles;
     ``exposure_ev``: the camera's exposure compensation (stops), set from the light so that
-    dim scenes are exposed as a camera's automatic exposure would."""
+    dim scenes are exposed as a camera's automatic exposure would; ``season``: one of
+    :data:`SEASONS`; ``snow_cover``: share of the upward faces under snow (0 but in the
+    ``snow`` season)."""
 
     name: str
     sky: str
@@ -65,6 +76,8 @@ class Weather:
     fog_visibility_m: float | None
     wetness: float
     exposure_ev: float
+    season: str = "summer"
+    snow_cover: float = 0.0
 
     def summary(self) -> dict:
         """site.json's ``weather``: every field."""
@@ -84,9 +97,31 @@ def check_weather(name: str | None) -> str | None:
     return name
 
 
-def choose_weather(seed: int, name: str | None = None) -> Weather:
+def check_season(name: str | None) -> str | None:
+    """``name`` if it names a season (or is None: drawn per seed); ValueError otherwise."""
+    if name is not None and name not in SEASONS:
+        raise ValueError(f"unknown season {name!r}; choose one of {', '.join(SEASONS)}")
+    return name
+
+
+def choose_season(seed: int, weather: str, name: str | None = None) -> tuple[str, float]:
+    """(season, snow cover) of the site of ``seed``: ``name`` or one drawn by its share from
+    the seed's own ``season`` stream; snow does not lie after rain (a thaw: winter)."""
+    check_season(name)
+    rng = stream(seed, "season")
+    names = list(SEASONS)
+    drawn = names[int(rng.choice(len(names), p=[SEASONS[n] for n in names]))]
+    cover = float(rng.uniform(*SNOW_COVER))  # drawn for every season: the same draws follow
+    season = name or drawn
+    if season == "snow" and weather == "after-rain":
+        season = "winter"
+    return season, cover if season == "snow" else 0.0
+
+
+def choose_weather(seed: int, name: str | None = None, season: str | None = None) -> Weather:
     """The weather of the site of ``seed``: the state ``name``, or one drawn by its weight,
-    with its parameters drawn from the seed's ``weather`` stream."""
+    with its parameters drawn from the seed's ``weather`` stream, and its season
+    (:func:`choose_season`; ``season`` fixes it)."""
     check_weather(name)
     rng = stream(seed, "weather")
     names = list(WEATHERS)
@@ -103,8 +138,9 @@ def choose_weather(seed: int, name: str | None = None) -> Weather:
     sky_strength = float(rng.uniform(3.0, 5.0))
     fog = float(rng.uniform(*FOG_VISIBILITY_M)) if name == "fog" else None
     wet = float(rng.uniform(0.6, 1.0)) if name == "after-rain" else 0.0
+    seasonal, snow = choose_season(seed, name, season)
     return Weather(name, sky, elevation, azimuth, sun, sun_angle, turbidity, sky_strength, cover, fog, wet,
-                   exposure_for(sky, elevation, sun) + (WET_EXPOSURE_EV if wet else 0.0))
+                   exposure_for(sky, elevation, sun) + (WET_EXPOSURE_EV if wet else 0.0), seasonal, snow)
 
 
 WET_EXPOSURE_EV = 2.0 / 3.0  # wet ground reflects about half the light: automatic exposure opens up 2/3 stop more
