@@ -69,8 +69,9 @@ def test_ground_truth_cloud_opens_in_open3d_with_labels(seed_folder):
     scene = read_ground_truth(seed_folder)
     from generator.geometry.sampling import contact_faces, ground_height, triangle_areas
 
-    ground_z = ground_height(scene.parts)  # faces resting on the ground carry no points
-    area = sum(triangle_areas(p.vertices, p.faces[~contact_faces(p, ground_z)]).sum() for p in scene.parts)
+    ground_z = ground_height(scene.parts)  # faces resting on the ground carry no points, nor does scenery
+    assert any(p.scenery for p in scene.parts) and not any(p.scenery for p in scene.parts if p.label == "Building")
+    area = sum(triangle_areas(p.vertices, p.faces[~contact_faces(p, ground_z)]).sum() for p in scene.parts if not p.scenery)
     assert abs(len(ours.points) / area - 5.0) < 0.1
     # every point lies on a triangle of its own object, which carries its label (exact float64
     # distances to every triangle, for a random subset; open3d's float32 queries are off by mm)
