@@ -13,7 +13,7 @@ from ..geometry.portable_math import atan2, hypot, sincos
 from ..scene.assets import Asset
 from ..scene.kinds import kind as kind_named
 from ..scene.meshes import MeshData
-from ..scene.site import SitePlan, fence_part, site_ground, wet_materials
+from ..scene.site import SitePlan, fence_part, site_ground, split_margin, wet_materials
 from ..scene.timeline import object_name
 from ..scene.taxonomy import CLASSES
 from . import session
@@ -125,7 +125,7 @@ def add_asset(asset: Asset, position, yaw: float, seed: int, collection, index: 
         if data is None:
             obj.empty_display_size = 1.0
         obj["buildee_group"] = asset.kind
-        if scenery:
+        if scenery or part.scenery:
             obj[SCENERY_PROPERTY] = True  # rendered, no surface points (generator/geometry/parts.py MeshPart.scenery)
         obj["buildee_asset"] = index  # which placed asset the object belongs to (-1: ground, fence)
         objects.append(obj)
@@ -145,7 +145,8 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
     timeline = plan.stages > 1  # stable object names over the stages (docs/phases.md)
     with session.quiet():
         ground = site_ground(plan)
-        add_asset(Asset("Ground", [ground], (p.size, p.size)), (0.0, 0.0), 0.0, seed, _collection("Ground"),
+        add_asset(Asset("Ground", list(split_margin(ground, p.size / 2)), (p.size, p.size)), (0.0, 0.0), 0.0, seed,
+                  _collection("Ground"),
                   uid=0 if timeline else None)
         fences = [fence_part(a, b) for a, b in plan.fence_runs]
         add_asset(Asset("Fence", fences, (0.0, 0.0)), (0.0, 0.0), 0.0, seed, _collection("Fence"), uid=0 if timeline else None)

@@ -28,7 +28,9 @@ class Keyframes:
 @dataclass
 class Part:
     """One Blender object: ``label`` (a taxonomy class, or '' for an empty pivot), its mesh
-    (None for an empty), transform relative to its parent (or to the asset frame)."""
+    (None for an empty), transform relative to its parent (or to the asset frame);
+    ``scenery``: the object is scenery, whatever its kind (the ground beyond the fence;
+    :class:`generator.scene.kinds.AssetKind` ``scenery``)."""
 
     label: str
     mesh: MeshData | None
@@ -36,6 +38,7 @@ class Part:
     rotation: tuple = (0.0, 0.0, 0.0)
     parent: int | None = None
     keys: Keyframes | None = None
+    scenery: bool = False
 
 
 @dataclass

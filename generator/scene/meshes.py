@@ -30,6 +30,22 @@ class MeshData:
     def triangle_count(self) -> int:
         return 2 * len(self.quads) + len(self.tris)
 
+    def faces_where(self, keep: np.ndarray) -> "MeshData":
+        """The faces selected by ``keep`` (a bool per face, quads first), their vertices
+        only, materials kept by name."""
+        keep = np.asarray(keep, bool)
+        nq = len(self.quads)
+        b = MeshBuilder()
+        for k, name in enumerate(self.materials):
+            q = self.quads[keep[:nq] & (self.face_material[:nq] == k)]
+            t = self.tris[keep[nq:] & (self.face_material[nq:] == k)]
+            if len(q) or len(t):
+                used = np.unique(np.concatenate([q.ravel(), t.ravel()]))
+                remap = np.full(len(self.vertices), -1)
+                remap[used] = np.arange(len(used))
+                b.add(self.vertices[used], remap[q], remap[t], name)
+        return b.build()
+
 
 def rotation_z(yaw: float) -> np.ndarray:
     s, c = sincos(yaw)

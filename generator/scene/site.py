@@ -22,7 +22,7 @@ from .assets import Footprint
 from .building_types import check_building_type
 from .contexts import Context, check_context, choose_context
 from .catalogue.fence import fence_part  # noqa: F401  (generator.blender.build builds the fence from here)
-from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part, wet_materials  # noqa: F401  (and the ground)
+from .catalogue.ground import GROUND_MARGIN, GroundSurface, check_surface, choose_ground, ground_part, split_margin, wet_materials  # noqa: F401  (and the ground)
 from .kinds import all_kinds, kind as kind_named
 from .placement import PlacedAsset, Placer, SiteArea  # noqa: F401  (PlacedAsset: the plan's entries)
 from .planning import SiteState

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 from ...geometry.seeding import stream
 from ..assets import Part
 from ..kinds import AssetKind, register
@@ -137,6 +139,18 @@ class GroundSurface:
     def summary(self) -> dict:
         """site.json's ``ground``: surface and road kinds."""
         return asdict(self)
+
+
+def split_margin(ground: Part, half: float) -> tuple[Part, Part]:
+    """The ground part of a site of half-side ``half`` as (the site's ground, the ground
+    beyond the site's edge): the faces whose centre lies outside the square go to a second
+    part flagged as scenery (in the images and their ground truth, no surface points: the
+    streets and neighbours beyond the fence stand on it)."""
+    m = ground.mesh
+    faces = [m.quads, m.tris]
+    centres = np.concatenate([m.vertices[f].mean(axis=1) for f in faces if len(f)])
+    beyond = np.max(np.abs(centres[:, :2]), axis=1) > half + 1e-9
+    return Part("Ground", m.faces_where(~beyond)), Part("Ground", m.faces_where(beyond), scenery=True)
 
 
 def wet_materials(ground: Part) -> list[str]:
