@@ -12,7 +12,8 @@ ground lies exactly on a voxel boundary (z = 0), where that round-off decides wh
 voxel layers a ground point falls in, so the table would move with it (docs/results.md). The scene is held at its first animation frame, as in the
 paper. The walk starts from the exploration baseline's fixed entrance pose
 (:mod:`.start_pose`) and stays in the camera spawn volume. Differences from the paper's
-code (voxel centre and majority label): docs/results.md.
+code (voxel centre and majority label; pixels of scenery, the surroundings beyond the fence,
+dropped like the sky: the ground truth has no points on them): docs/results.md.
 """
 
 from __future__ import annotations
@@ -56,13 +57,15 @@ def run_reconstruction(seed: int, steps: int, voxel: float, out: Path, scene_pre
     traj = random_walk(checker, start, steps, stream(seed, "baseline-reconstruction"), step=step, angle=angle)
     traj.save(out / "trajectory.npz")
     vmap, paper_vmap = VoxelMap(voxel), FirstSeenVoxels(voxel)
+    scenery = np.array([i for i, p in enumerate(sim.scene_parts()) if p.scenery], dtype=np.int64)
     t_walk = time.perf_counter()
     for pose in tqdm(traj.poses[:steps], desc="frames", unit="frame"):  # observe, then act
         sim.set_world_from_camera(pose, check_collisions=False)
         r = sim.render()
         world = sim.depth_to_world_points(r.depth)
-        vmap.add(world, r.seg)
-        paper_vmap.add(world, r.seg)
+        seg = np.where(np.isin(r.instance, scenery), -1, r.seg)  # scenery is not scored: dropped, like the sky
+        vmap.add(world, seg)
+        paper_vmap.add(world, seg)
     t_render = time.perf_counter() - t_walk
     centres, labels = vmap.points()
     write_ply(out / "prediction.ply", {"x": centres[:, 0], "y": centres[:, 1], "z": centres[:, 2],
