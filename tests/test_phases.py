@@ -187,7 +187,7 @@ def test_point_labels_agree_with_an_independent_distance_check(timeline):
             # most unchanged points have a sample of the other surface within the samples' spacing;
             # the others (thin wires, sparse samples) and the changed points near the other surface
             # are settled by exact point-to-triangle distances
-            assert np.mean(d[~flags] < 0.05) > 0.98
+            assert np.mean(d[~flags] < 0.05) > 0.97  # 0.979 since the ground beyond the site (easy) carries none
             check = np.flatnonzero((~flags & (d >= 0.05)) | (flags & (d < 0.1)))
             check = rng.choice(check, min(len(check), 300), replace=False)  # the test's time
             exact = _exact_distances(xyz[check], other.parts, 0.2)

@@ -271,10 +271,11 @@ def test_scoring_density_is_refused_before_rendering(tmp_path):
 
 
 def test_points_density_is_refused_before_rendering(tmp_path):
-    """The same for the simulator's points: 700 per m^2 passes the small preset's 2,500 m^2
-    bound (1.75 M) but the built site has about 9 M; the limit is 5 M."""
-    r = run(tmp_path, "--seeds", "12", "--points-density", "700")
-    assert r.returncode == 1 and "--points-density 700 on this site gives" in r.stdout, r.stdout[-2000:]
+    """The same for the simulator's points: 1,200 per m^2 passes the small preset's 2,500 m^2
+    bound (3 M) but the built site has about 7.7 M (6,430 m^2 of surface: scenery carries no
+    points); the limit is 5 M."""
+    r = run(tmp_path, "--seeds", "12", "--points-density", "1200")
+    assert r.returncode == 1 and "--points-density 1200 on this site gives" in r.stdout, r.stdout[-2000:]
     assert "the limit is 5,000,000: lower it, e.g. to " in r.stdout
     assert not (tmp_path / "seed_000012").exists()
     assert not list((tmp_path / ".seed_000012.partial").rglob("*.exr"))
