@@ -123,7 +123,7 @@ def lay_street(side: Side, rng, build, context, streets: list[bool]) -> float:
         u = -side.half + rng.uniform(2.0, 12.0)
         while u < side.half - 2.0:
             if not (gate and abs(u) < GATE_CLEAR_M):
-                side.put(build["StreetLight"](rng), u, d0 + 0.35, turn=np.pi, lift=0.0, box=(u - 0.2, u + 0.2, d0, d0 + 0.6))
+                side.put(build["StreetLight"](rng), u, d0 + 0.35, turn=np.pi, box=(u - 0.2, u + 0.2, d0, d0 + 0.6))
             u += rng.uniform(24.0, 34.0)
     for lane_d in (d0 + sw + 1.1, d1 - sw - 1.1):
         u = -side.half + rng.uniform(3.0, 6.0)
@@ -146,7 +146,7 @@ def lay_lots(side: Side, rng, build, context, start: float) -> None:
             while u < side.half - 4.0:
                 length = min(rng.uniform(6.0, 16.0), side.half - u)
                 hedge = build["Hedge"](rng, length=length)
-                side.put(hedge, u + length / 2, d, lift=0.0)
+                side.put(hedge, u + length / 2, d)
                 u += length + rng.uniform(1.0, 6.0)
         return
     u = -side.half + rng.uniform(0.0, context.gap[1] + 1.0)
@@ -163,7 +163,7 @@ def lay_lots(side: Side, rng, build, context, start: float) -> None:
         side.put(house, u + frontage / 2, d, lift=-0.05)
         if context.hedges and setback > 1.6:
             for a, b in ((u + 0.2, u + frontage / 2 - 0.7), (u + frontage / 2 + 0.7, u + frontage - 0.2)):
-                side.put(build["Hedge"](rng, length=b - a), (a + b) / 2, start + 0.6, lift=0.0)
+                side.put(build["Hedge"](rng, length=b - a), (a + b) / 2, start + 0.6)
         u += frontage + rng.uniform(*context.gap)
 
 
@@ -175,7 +175,7 @@ def lay_trees(side: Side, rng, build, context, start: float) -> None:
         r = tree.size[0] / 2
         u, d = rng.uniform(-side.half + r, side.half - r), rng.uniform(start + r + 0.3, MARGIN_M - 0.5)
         if d - r > start and side.free(u - r, u + r, d - r, d + r):
-            side.put(tree, u, d, lift=0.0)
+            side.put(tree, u, d)
 
 
 SURROUNDINGS = Grouped(plan_surroundings, "surroundings")
