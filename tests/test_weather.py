@@ -3,6 +3,7 @@ drawn deterministically, recorded in site.json, overridable, varied over seeds; 
 change, the ground truth does not; fog follows Koschmieder's law along each ray."""
 
 import json
+import math
 import subprocess
 import sys
 from collections import Counter
@@ -11,7 +12,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, assert_refused
-from generator.scene.weather import SEASONS, SUN_ELEVATION_DEG, WEATHERS, WET_EXPOSURE_EV, choose_season, choose_weather
+from generator.scene.weather import (LATITUDE_DEG, SEASON_DAYS, SEASONS, SUN_ELEVATION_DEG, WEATHERS, WET_EXPOSURE_EV,
+                                     WORKING_HOURS, choose_season, choose_weather)
 
 
 def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_rest():
@@ -30,14 +32,35 @@ def test_weather_is_drawn_per_seed_deterministically_and_an_override_keeps_the_r
         choose_weather(12, "rainy")
 
 
-def test_seeds_0_to_99_cover_four_skies_and_the_sun_from_dawn_to_midday():
+def test_seeds_0_to_99_cover_four_skies_and_the_sun_from_golden_hour_to_midday():
     weathers = [choose_weather(seed) for seed in range(100)]
     skies = Counter(w.sky for w in weathers)
     assert set(skies) == {"clear", "hazy", "partly-cloudy", "overcast"} and min(skies.values()) >= 10
     assert len({w.name for w in weathers}) == len(WEATHERS)
     elevations = np.array([w.sun_elevation_deg for w in weathers])
     lo, hi = SUN_ELEVATION_DEG
-    assert lo <= elevations.min() < lo + 5 and hi - 5 < elevations.max() <= hi
+    assert lo - 1e-9 <= elevations.min() < lo + 3 and 60 < elevations.max() <= hi
+    assert 0.05 <= np.mean(elevations < 10) <= 0.3  # low suns are common: mornings, evenings, winters
+
+
+def test_the_sun_stands_where_it_would_at_the_recorded_place_day_and_time():
+    """An independent solar position (libm's asin, cos): the elevation follows from the
+    recorded latitude, day and solar time; each lies in its range and the day in its season's."""
+    for seed in range(60):
+        w = choose_weather(seed)
+        phi, hour = math.radians(w.latitude_deg), math.radians(15 * (w.solar_time_h - 12))
+        dec = -math.radians(23.44) * math.cos(2 * math.pi * (w.day_of_year + 10) / 365)
+        up = math.sin(phi) * math.sin(dec) + math.cos(phi) * math.cos(dec) * math.cos(hour)
+        assert w.sun_elevation_deg == pytest.approx(math.degrees(math.asin(up)), abs=1e-9)
+        assert LATITUDE_DEG[0] <= w.latitude_deg <= LATITUDE_DEG[1]
+        assert SEASON_DAYS[w.season][0] <= w.day_of_year <= SEASON_DAYS[w.season][1]
+        assert WORKING_HOURS[0] <= w.solar_time_h <= WORKING_HOURS[1] and w.sun_elevation_deg >= SUN_ELEVATION_DEG[0] - 1e-9
+    # the same place and hour: the winter sun stands lower than the summer's
+    for seed in range(10):
+        winter, summer = choose_weather(seed, "clear", "winter"), choose_weather(seed, "clear", "summer")
+        assert winter.latitude_deg == summer.latitude_deg
+        noon = [90 - w.latitude_deg - 23.44 * math.cos(2 * math.pi * (w.day_of_year + 10) / 365) for w in (winter, summer)]
+        assert winter.sun_elevation_deg <= noon[0] + 1e-6 < noon[1] - 10
 
 
 def test_seasons_are_drawn_from_their_own_stream_and_snow_never_follows_rain():
@@ -49,7 +72,7 @@ def test_seasons_are_drawn_from_their_own_stream_and_snow_never_follows_rain():
         assert not (w.season == "snow" and w.name == "after-rain")
         for season in SEASONS:  # fixing the season moves no draw of the weather
             fixed = choose_weather(seed, season=season)
-            assert fixed.sun_elevation_deg == w.sun_elevation_deg and fixed.name == w.name
+            assert fixed.latitude_deg == w.latitude_deg and fixed.name == w.name  # the sun follows the season's days
             assert fixed.season == (season if not (season == "snow" and w.name == "after-rain") else "winter")
     assert choose_season(3, "after-rain", "snow") == ("winter", 0.0)  # a thaw
     with pytest.raises(ValueError, match="^unknown season 'monsoon'; choose one of spring, summer"):

@@ -14,7 +14,13 @@ stream (no other stream moves, so the layout of a site does not depend on its we
   (extinction 3.912 / visibility per metre along each camera ray: Koschmieder's law);
 - ``after-rain``: an overcast or cloudy sky and wet ground (darker, glossier, with puddles).
 
-Sun elevations are uniform in [5, 80] degrees (dawn to midday), azimuths in [0, 360).
+The sun stands where it would at a place and time (:func:`solar_elevation`): a latitude
+(:data:`LATITUDE_DEG`: 35-55 degrees north, the Mediterranean to the Baltic, central China,
+the United States), a day of the drawn season and a time of the working day
+(:data:`WORKING_HOURS`, local solar time) while the sun is at least
+:data:`SUN_MIN_ELEVATION_DEG` up: low winter suns, high summer noons, golden hours in the
+morning and the evening. The azimuth stays uniform in [0, 360) (a site's orientation is
+arbitrary).
 
 A seed also draws its **season** (:data:`SEASONS`, ``--season NAME`` fixes it) from its own
 ``season`` stream: spring, summer, autumn and winter colour the leaves and the grass
@@ -31,10 +37,21 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from ..geometry.portable_math import sin
+import numpy as np
+
+from ..geometry.portable_math import atan2, cos, sin
 from ..geometry.seeding import stream
 
-SUN_ELEVATION_DEG = (5.0, 80.0)
+LATITUDE_DEG = (35.0, 55.0)  # degrees north: where the sites are
+WORKING_HOURS = (6.0, 18.0)  # local solar time (12 = the sun due south)
+SUN_MIN_ELEVATION_DEG = 2.0  # a site photographed by daylight: the sun at least this high
+OBLIQUITY_DEG = 23.44  # the Earth's axial tilt: the sun's declination swings +-23.44 degrees over a year
+# days of the year (1 = January 1st) of each season, as meteorologists count them: winter from
+# December 1st (day 335) to the end of February (day 59 + 365)
+SEASON_DAYS = {"spring": (60.0, 152.0), "summer": (152.0, 244.0), "autumn": (244.0, 335.0),
+               "winter": (335.0, 425.0), "snow": (335.0, 425.0)}
+# the bounds of the sun's elevation over all of the above (degrees)
+SUN_ELEVATION_DEG = (SUN_MIN_ELEVATION_DEG, 90.0 - LATITUDE_DEG[0] + OBLIQUITY_DEG)
 # name: (weight per seed, sky) -- the weights sum to 1
 WEATHERS = {
     "clear": (0.25, "clear"),
@@ -62,7 +79,9 @@ class Weather:
     ``exposure_ev``: the camera's exposure compensation (stops), set from the light so that
     dim scenes are exposed as a camera's automatic exposure would; ``season``: one of
     :data:`SEASONS`; ``snow_cover``: share of the upward faces under snow (0 but in the
-    ``snow`` season)."""
+    ``snow`` season); ``latitude_deg`` (north), ``day_of_year`` (1 = January 1st, past 365
+    in a winter's January and February) and ``solar_time_h`` (local solar time, 12 = noon):
+    where and when, which set ``sun_elevation_deg`` (:func:`solar_elevation`)."""
 
     name: str
     sky: str
@@ -78,6 +97,9 @@ class Weather:
     exposure_ev: float
     season: str = "summer"
     snow_cover: float = 0.0
+    latitude_deg: float = 45.0
+    day_of_year: float = 172.0
+    solar_time_h: float = 12.0
 
     def summary(self) -> dict:
         """site.json's ``weather``: every field."""
@@ -121,7 +143,7 @@ def choose_season(seed: int, weather: str, name: str | None = None) -> tuple[str
 def choose_weather(seed: int, name: str | None = None, season: str | None = None) -> Weather:
     """The weather of the site of ``seed``: the state ``name``, or one drawn by its weight,
     with its parameters drawn from the seed's ``weather`` stream, and its season
-    (:func:`choose_season`; ``season`` fixes it)."""
+    (:func:`choose_season`; ``season`` fixes it, and the day of the year with it)."""
     check_weather(name)
     rng = stream(seed, "weather")
     names = list(WEATHERS)
@@ -129,7 +151,13 @@ def choose_weather(seed: int, name: str | None = None, season: str | None = None
     name = name or drawn
     rain_sky = "overcast" if rng.uniform() < 0.6 else "partly-cloudy"  # drawn for every state: the same draws follow
     sky = WEATHERS[name][1] or rain_sky
-    elevation = float(rng.uniform(*SUN_ELEVATION_DEG))
+    seasonal, snow = choose_season(seed, name, season)
+    latitude = float(rng.uniform(*LATITUDE_DEG))
+    first, last = SEASON_DAYS[seasonal]
+    day = first + float(rng.uniform()) * (last - first)
+    start, end = sunlit_hours(latitude, day)
+    time = start + float(rng.uniform()) * (end - start)
+    elevation = solar_elevation(latitude, day, time)
     azimuth = float(rng.uniform(0.0, 360.0))
     turbidity = float(rng.uniform(5.0, 9.0) if sky == "hazy" else rng.uniform(2.0, 3.5))
     cover = {"clear": 0.0, "hazy": 0.0, "partly-cloudy": float(rng.uniform(0.3, 0.6)), "overcast": 1.0}[sky]
@@ -138,9 +166,43 @@ def choose_weather(seed: int, name: str | None = None, season: str | None = None
     sky_strength = float(rng.uniform(3.0, 5.0))
     fog = float(rng.uniform(*FOG_VISIBILITY_M)) if name == "fog" else None
     wet = float(rng.uniform(0.6, 1.0)) if name == "after-rain" else 0.0
-    seasonal, snow = choose_season(seed, name, season)
     return Weather(name, sky, elevation, azimuth, sun, sun_angle, turbidity, sky_strength, cover, fog, wet,
-                   exposure_for(sky, elevation, sun) + (WET_EXPOSURE_EV if wet else 0.0), seasonal, snow)
+                   exposure_for(sky, elevation, sun) + (WET_EXPOSURE_EV if wet else 0.0), seasonal, snow,
+                   latitude, day, time)
+
+
+def sun_declination(day: float) -> float:
+    """The sun's declination (radians) on ``day`` of the year: -23.44 degrees x
+    cos(2 pi (day + 10) / 365) (lowest at the December solstice, about day 355)."""
+    return -math.radians(OBLIQUITY_DEG) * float(cos(2.0 * math.pi * (day + 10.0) / 365.0))
+
+
+def _asin(x: float) -> float:
+    """arcsin x (radians) from the portable atan2."""
+    return float(atan2(x, float(np.sqrt(max(0.0, 1.0 - x * x)))))
+
+
+def solar_elevation(latitude_deg: float, day: float, solar_time_h: float) -> float:
+    """The sun's elevation above the horizon (degrees) at ``latitude_deg`` north on ``day`` of
+    the year at local solar time ``solar_time_h``: sin(elevation) = sin(latitude) sin(declination)
+    + cos(latitude) cos(declination) cos(hour angle), the hour angle 15 degrees per hour from
+    noon (no refraction, no equation of time: solar, not clock, time)."""
+    phi, dec = math.radians(latitude_deg), sun_declination(day)
+    hour = math.radians(15.0 * (solar_time_h - 12.0))
+    s = float(sin(phi)) * float(sin(dec)) + float(cos(phi)) * float(cos(dec)) * float(cos(hour))
+    return math.degrees(_asin(s))
+
+
+def sunlit_hours(latitude_deg: float, day: float) -> tuple[float, float]:
+    """The local solar times (hours) between which the sun stands at least
+    :data:`SUN_MIN_ELEVATION_DEG` up on ``day`` at ``latitude_deg``, within
+    :data:`WORKING_HOURS`."""
+    phi, dec = math.radians(latitude_deg), sun_declination(day)
+    c = (float(sin(math.radians(SUN_MIN_ELEVATION_DEG))) - float(sin(phi)) * float(sin(dec))) / (
+        float(cos(phi)) * float(cos(dec)))
+    c = min(1.0, max(-1.0, c))
+    half = math.degrees(float(atan2(float(np.sqrt(1.0 - c * c)), c))) / 15.0  # hours from noon to the sun at the minimum
+    return max(WORKING_HOURS[0], 12.0 - half), min(WORKING_HOURS[1], 12.0 + half)
 
 
 WET_EXPOSURE_EV = 2.0 / 3.0  # wet ground reflects about half the light: automatic exposure opens up 2/3 stop more
