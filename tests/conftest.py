@@ -85,6 +85,15 @@ def built_once(tmp_path_factory, name: str, build) -> tuple[Path, subprocess.Com
 
 
 @pytest.fixture(scope="session")
+def medium_plans():
+    """{seed: plan} of medium seeds 0-11 (20 frames; nothing rendered), planned once per
+    worker and shared read-only by the tests of the relief, the machinery and the classes."""
+    from generator.scene.site import plan_site, site_params
+
+    return {seed: plan_site(seed, site_params("medium", frames=20)) for seed in range(12)}
+
+
+@pytest.fixture(scope="session")
 def finished(tmp_path_factory):
     """(output folder, completed process) of one tiny run of seed 4, written by the real pipeline;
     shared by the tests of the exports, the evaluation and the loaders."""

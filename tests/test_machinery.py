@@ -147,14 +147,9 @@ def test_piling_rigs_are_real_sized():
     assert tools == {"hammer", "auger"}
 
 
-@pytest.fixture(scope="module")
-def medium_plans():
-    return [plan_site(seed, site_params("medium")) for seed in range(20)]
-
-
 def test_medium_sites_place_the_machines_clear_of_everything(medium_plans):
     seeds_with = {name: 0 for name in MACHINES}
-    for plan in medium_plans:
+    for plan in medium_plans.values():
         for name in MACHINES:
             seeds_with[name] += any(p.asset.kind == name for p in plan.placed)
         others = [p.footprint for p in plan.placed if not p.asset.moves] + plan.reserved
