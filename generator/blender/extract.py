@@ -23,6 +23,10 @@ from .keys import instance_key, object_key
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 SPAWN_LABEL = "CameraSpawn"
 SCENERY_PROPERTY = "buildee_scenery"  # an object property: the object is scenery (MeshPart.scenery)
+# material properties: its LiDAR optics (MeshPart.face_reflectivity / face_transparent); a
+# material without them (a user's) reflects DEFAULT_REFLECTIVITY and is opaque
+REFLECTIVITY_PROPERTY = "buildee_reflectivity"
+TRANSPARENT_PROPERTY = "buildee_transparent"
 _SUFFIX = re.compile(r"\.\d{3,}$")
 
 
@@ -49,7 +53,8 @@ class DynamicBinding:
     source_object: object = field(default=None, repr=False, compare=False)
 
 
-def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
+def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices, triangles, each triangle's reflectivity, each triangle's transparency)."""
     nv = len(mesh.vertices)
     co = np.empty(nv * 3, dtype=np.float64)
     mesh.vertices.foreach_get("co", co)
@@ -57,25 +62,41 @@ def _mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
     nt = len(mesh.loop_triangles)
     tri = np.empty(nt * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", tri)
-    return co.reshape(nv, 3), tri.reshape(nt, 3)
+    slot = np.zeros(nt, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("material_index", slot)
+    reflectivity, transparent = _slot_optics(mesh.materials)
+    slot = np.clip(slot, 0, len(reflectivity) - 1)
+    return co.reshape(nv, 3), tri.reshape(nt, 3), reflectivity[slot], transparent[slot]
+
+
+def _slot_optics(materials) -> tuple[np.ndarray, np.ndarray]:
+    """(reflectivity (S,) float32, transparent (S,) bool) of a mesh's material slots (one
+    default slot if it has none)."""
+    from ..lidar.physics import DEFAULT_REFLECTIVITY
+
+    rows = [(float(m.get(REFLECTIVITY_PROPERTY, DEFAULT_REFLECTIVITY)), bool(m.get(TRANSPARENT_PROPERTY, False)))
+            if m is not None else (DEFAULT_REFLECTIVITY, False) for m in materials] or [(DEFAULT_REFLECTIVITY, False)]
+    return np.array([r for r, _ in rows], dtype=np.float32), np.array([t for _, t in rows], dtype=bool)
 
 
 def _evaluated_mesh(obj, cache: dict):
-    """(vertices, faces, closed, outward) of an evaluated object, cached per mesh datablock."""
+    """(vertices, faces, closed, outward, face reflectivity, face transparency) of an
+    evaluated object, cached per mesh datablock."""
     data = obj.data
     key = data.as_pointer() if (obj.type == "MESH" and data is not None) else None
     if key is not None and key in cache:
         return cache[key]
     if obj.type == "MESH":
-        verts, faces = _mesh_arrays(data)
+        verts, faces, reflectivity, transparent = _mesh_arrays(data)
     else:
         mesh = obj.to_mesh()
         try:
-            verts, faces = _mesh_arrays(mesh) if mesh is not None else (np.zeros((0, 3)), np.zeros((0, 3), np.int32))
+            verts, faces, reflectivity, transparent = _mesh_arrays(mesh) if mesh is not None else (
+                np.zeros((0, 3)), np.zeros((0, 3), np.int32), np.zeros(0, np.float32), np.zeros(0, bool))
         finally:
             obj.to_mesh_clear()
     closed, outward = closed_and_orientation(verts, faces) if len(faces) and np.isfinite(verts).all() else (False, 1)
-    result = (verts, faces, closed, outward)
+    result = (verts, faces, closed, outward, reflectivity, transparent)
     if key is not None:
         cache[key] = result
     return result
@@ -90,7 +111,7 @@ def _hidden_spawn_volume() -> MeshPart | None:
     scene: read its own mesh data (modifiers are not applied to spawn volumes)."""
     for obj in sorted(bpy.data.objects, key=lambda o: o.name):
         if obj.type == "MESH" and label_of(obj.name) == SPAWN_LABEL and len(obj.data.polygons):
-            verts, faces = _mesh_arrays(obj.data)
+            verts, faces = _mesh_arrays(obj.data)[:2]
             world = _matrix(obj.matrix_world)
             wv = apply_affine(world, verts)  # BLAS-free: the same bits on every CPU
             c, o = closed_and_orientation(wv, faces)
@@ -242,7 +263,7 @@ def extract_parts() -> ExtractedScene:
             f = _Found(object_key(name), name, _matrix(inst.matrix_world), name in dynamic, name, None, None,
                        bool(original.get(SCENERY_PROPERTY)))
         refusals.append(_holdout(inst, flags))
-        verts, faces, closed, outward = _evaluated_mesh(inst.object, cache)
+        verts, faces, closed, outward, reflectivity, transparent = _evaluated_mesh(inst.object, cache)
         if len(faces) == 0:
             continue
         refusals.append(_not_finite(f, verts))
@@ -252,7 +273,7 @@ def extract_parts() -> ExtractedScene:
             spawn = MeshPart(f.key, SPAWN_LABEL, wv, faces.copy(), closed=c, outward=o)
             continue
         rendered.add(_original(inst.object))
-        found.append((f, verts, faces, closed, outward))
+        found.append((f, verts, faces, closed, outward, reflectivity, transparent))
 
     if spawn is None:
         spawn = _hidden_spawn_volume()
@@ -301,18 +322,20 @@ def objects_by_name() -> dict:
 def _parts_of(found, depsgraph) -> tuple[list[MeshPart], list[DynamicBinding]]:
     parts, bindings = [], []
     objects = objects_by_name() if any(f.is_dyn for f, *_ in found) else {}
-    for f, verts, faces, closed, outward in found:
+    for f, verts, faces, closed, outward, reflectivity, transparent in found:
         label = label_of(f.name)
         if f.is_dyn:
             source = objects[f.source] if f.source is not None else None
             offset = _offset(f.world, f.parent_world, source, depsgraph)
             bindings.append(DynamicBinding(len(parts), f.driver, offset, f.source, objects[f.driver], source))
-            parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name, f.scenery))
+            parts.append(MeshPart(f.key, label, verts.copy(), faces, True, f.world, closed, outward, f.name, f.scenery,
+                                  reflectivity, transparent))
         else:
             wv = apply_affine(f.world, verts)  # BLAS-free: the same bits on every CPU
             if np.linalg.det(f.world[:3, :3]) < 0:
                 outward = -outward  # a mirroring matrix flips the winding
-            parts.append(MeshPart(f.key, label, wv, faces, False, np.eye(4), closed, outward, f.name, f.scenery))
+            parts.append(MeshPart(f.key, label, wv, faces, False, np.eye(4), closed, outward, f.name, f.scenery,
+                                  reflectivity, transparent))
     return parts, bindings
 
 

@@ -14,6 +14,7 @@ import numpy as np
 from ..geometry.seeding import stream
 from ..scene.kinds import all_materials
 from ..scene.materials import DEFAULT
+from .extract import REFLECTIVITY_PROPERTY, TRANSPARENT_PROPERTY
 
 
 
@@ -58,6 +59,8 @@ def make_material(key: str, seed: int):
     else:
         mat.node_tree.links.new(_add_layers(mat.node_tree, layers, colour, rng, recipe.planar), bsdf.inputs["Base Color"])
     mat.diffuse_color = (*colour, 1.0)  # viewport / Workbench colour
+    mat[REFLECTIVITY_PROPERTY] = float(recipe.lidar_reflectivity)  # what a LiDAR sees (generator/lidar/physics.py)
+    mat[TRANSPARENT_PROPERTY] = bool(recipe.transparent)
     return mat
 
 

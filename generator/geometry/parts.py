@@ -20,7 +20,11 @@ class MeshPart:
     that solid, -1 if they point in. ``scenery``: the part is scenery (its Blender object's
     ``buildee_scenery`` property: the surroundings beyond a generated site's fence): it is
     rendered, seen in every per-pixel ground truth and takes part in visibility and
-    collisions, but carries no surface or scoring points.
+    collisions, but carries no surface or scoring points. ``face_reflectivity`` (F,)
+    float32: each face's diffuse reflectivity at a LiDAR's 905 nm, in [0, 1], and
+    ``face_transparent`` (F,) bool: the face is clear glass, which a laser beam passes
+    through (docs/lidar.md); None: every face the LiDAR's defaults (an opaque surface of
+    :data:`generator.lidar.physics.DEFAULT_REFLECTIVITY`).
     """
 
     name: str
@@ -33,6 +37,8 @@ class MeshPart:
     outward: int = 1
     source: str = ""  # name of the Blender object the triangles come from
     scenery: bool = False
+    face_reflectivity: np.ndarray | None = None
+    face_transparent: np.ndarray | None = None
 
     def world_vertices(self) -> np.ndarray:
         """(V, 3) float64 world positions, the same bits on every CPU (camera.rows_times)."""

@@ -184,6 +184,12 @@ class SceneGeometry:
     def cast_with_normals(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """As :meth:`cast`, plus the unit normal (N, 3) float32 of the triangle hit, world
         frame, either side (zero for a miss)."""
+        t, part, _, normal = self._first_hits(origins, directions, normals=True)
+        return t, part, normal
+
+    def cast_faces(self, origins: np.ndarray, directions: np.ndarray):
+        """As :meth:`cast_with_normals`, returning (t, part, face, normal): ``face`` (N,) int64
+        the index of the triangle hit in its part's ``faces`` (-1 for a miss)."""
         return self._first_hits(origins, directions, normals=True)
 
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
@@ -196,19 +202,21 @@ class SceneGeometry:
         rays[:, 3:] = directions
         best_t = np.full(n, np.inf)
         best_part = np.full(n, -1, dtype=np.int64)
+        best_face = np.full(n, -1, dtype=np.int64)
         best_normal = np.zeros((n, 3), dtype=np.float32) if normals else None
         self._scenes()
         for structure, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
             if structure is None:
                 continue
-            hit, t, gid, unit = structure.first_hits(origins, directions, rays, normals)
+            hit, t, gid, face, unit = structure.first_hits(origins, directions, rays, normals)
             closer = t < best_t[hit]
             rows = hit[closer]
             best_t[rows] = t[closer]
             best_part[rows] = np.asarray(self._geometry_to_part(index), dtype=np.int64)[gid[closer]]
+            best_face[rows] = face[closer]
             if normals:
                 best_normal[rows] = unit[closer]
-        return best_t, best_part, best_normal
+        return best_t, best_part, best_face, best_normal
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces

@@ -110,8 +110,8 @@ class Structure:
     def first_hits(self, origins: np.ndarray, directions: np.ndarray, rays: np.ndarray, normals: bool):
         """First hits of the float64 rays (``origins``, ``directions``: (N, 3)), ``rays`` (N, 6)
         being them in float32 (Embree's input): returns (rows (M,) of the rays that hit,
-        t (M,) float64, geometry id (M,) int64, unit normal (M, 3) or None), decided by the
-        steps of the module's docstring."""
+        t (M,) float64, geometry id (M,) int64, face (M,) int64 index into that geometry's
+        faces, unit normal (M, 3) or None), decided by the steps of the module's docstring."""
         ans = self.scene.cast_rays(tensor(rays))
         t_embree = ans["t_hit"].numpy()
         rows = np.flatnonzero(np.isfinite(t_embree))
@@ -151,4 +151,4 @@ class Structure:
             t[lost] = t_embree[rows[lost]]
             if normals:
                 unit[lost] = ans["primitive_normals"].numpy()[rows[lost]]
-        return rows, t, geometry, unit
+        return rows, t, geometry, face - face_start[geometry], unit

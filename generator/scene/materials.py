@@ -57,7 +57,8 @@ class Material:
     render, the same look); ``reflectivity``: the
     surface's diffuse reflectivity for a near-infrared (905 nm) laser, in [0, 1], where it is
     known to differ from what its colour suggests (None: :attr:`lidar_reflectivity` derives it
-    from the colour)."""
+    from the colour); ``transparent``: clear glass, which a LiDAR's beam passes through
+    (docs/lidar.md)."""
 
     name: str
     colour: tuple[float, float, float]
@@ -69,6 +70,7 @@ class Material:
     layers: tuple[Pattern, ...] = ()
     reflectivity: float | None = None
     planar: bool = False
+    transparent: bool = False
 
     def __post_init__(self):
         if self.reflectivity is not None and not 0.0 <= self.reflectivity <= 1.0:
@@ -133,7 +135,7 @@ SHARED: tuple[Material, ...] = (
              layers=(Pattern(40.0, GRAIN[0], GRAIN[1], detail=3.0, stretch=(15.0, 1.0, 1.0)),)),
     Material("wood_dark", (0.25, 0.16, 0.08), 0.8, 0.0, Pattern(18.0, (0.15, 0.1, 0.05), 0.5),
              layers=(Pattern(40.0, tuple(c * 0.55 for c in GRAIN[0]), GRAIN[1], detail=3.0, stretch=(15.0, 1.0, 1.0)),)),
-    Material("glass", (0.02, 0.03, 0.04), 0.05, reflectivity=0.02),  # transmits and mirrors: next to no diffuse return
+    Material("glass", (0.02, 0.03, 0.04), 0.05, reflectivity=0.02, transparent=True),  # transmits and mirrors: next to no diffuse return
     Material("rubber", (0.02, 0.02, 0.02), 0.9, reflectivity=0.05),  # carbon black absorbs the near infrared
     Material("plastic_white", (0.8, 0.8, 0.8), 0.4),
 )

@@ -1,0 +1,211 @@
+"""A LiDAR sweep cast into the scene's exact triangles, over time (bpy-free; docs/lidar.md).
+
+:class:`Scanner` holds one scene (the rigid parts the Simulator already builds:
+generator/geometry/raycast.py ``SceneGeometry``, static parts in one Embree structure, moving
+ones in another) with each part's class and object ids and its faces' optics.
+:meth:`Scanner.sweep` fires one sweep of a sensor (generator/lidar/sensors.py) carried by a
+body whose pose over time is a :class:`generator.lidar.motion.MotionTrack`:
+
+1. every beam leaves from the sensor's pose at its own firing time (the body's pose then,
+   times the mount's rotation);
+2. moving objects are placed at the middle of the time slice the beam falls in: the sweep
+   is cut into :meth:`Scanner.slices` equal slices, so that no point of a moving object is
+   more than ``speed x slice / 2`` from where it was when the beam met it (the bound is
+   returned with the sweep and kept under the range noise's sigma, or 1 cm without noise);
+3. a beam stops at the first opaque face; glass passes it on (generator/lidar/physics.py);
+4. the range gets its noise, the return its intensity, and the detection rules drop what a
+   real sensor would not report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.camera import affine_inverse, apply_affine, matmul_exact, rows_times
+from ..geometry.raycast import SceneGeometry
+from ..geometry.seeding import stream
+from . import physics
+from .motion import MotionTrack
+from .returns import Scan
+from .sensors import body_from_sensor, emission
+
+MAX_SLICES = 256
+PASS_THROUGH_M = 1e-4  # a beam that passed a pane goes on from this far beyond it
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A sweep's returns, their float64 world positions ``world`` (N, 3) at the returns' own
+    times (the scan's files hold float32: a few micrometres of rounding at tens of metres),
+    and its motion bound: no return is further than ``motion_bound_m`` metres from where the
+    moving surface it met was at the return's time."""
+
+    scan: Scan
+    world: np.ndarray
+    motion_bound_m: float
+    slices: int
+
+
+class Scanner:
+    """Sweeps sensors through one scene. ``geometry``: its rigid parts; ``label_of_part``,
+    ``instance_of_part`` (P,): each part's class id and object id; ``seed``: the noise's
+    random streams are (seed, "lidar", sensor name, sweep index)."""
+
+    def __init__(self, geometry: SceneGeometry, label_of_part: np.ndarray, instance_of_part: np.ndarray, seed: int):
+        self.geometry = geometry
+        self.label_of_part = np.asarray(label_of_part, dtype=np.int64)
+        self.instance_of_part = np.asarray(instance_of_part, dtype=np.int64)
+        if max(self.label_of_part.max(initial=0), self.instance_of_part.max(initial=0)) > 0xFFFF:
+            raise ValueError("a LiDAR scan stores class and object ids in 16 bits: this scene has more than 65,535 "
+                             "objects or classes; scan a smaller scene")
+        self.seed = seed
+        # every part's faces' optics in one array: part i's face f at first_face[i] + f
+        self.first_face = np.cumsum([0] + [len(p.faces) for p in geometry.parts])[:-1].astype(np.int64)
+        self.reflectivity = np.concatenate([np.zeros(0)] + [
+            _face_values(p.face_reflectivity, len(p.faces), physics.DEFAULT_REFLECTIVITY, np.float64) for p in geometry.parts])
+        self.transparent = np.concatenate([np.zeros(0, bool)] + [
+            _face_values(p.face_transparent, len(p.faces), False, bool) for p in geometry.parts])
+        self.radius = {i: _radius(geometry.parts[i]) for i in geometry.dynamic_index}
+
+    def slices(self, sensor, objects: dict[int, MotionTrack]) -> tuple[int, float]:
+        """(slices, motion bound in metres) of a sweep of ``sensor`` among ``objects`` (part
+        index -> its track): enough equal slices that the fastest object moves at most the
+        range noise's sigma (1 cm without noise) in one, at most :data:`MAX_SLICES`."""
+        speed = max((track.speed_bound(self.radius.get(i, 0.0)) for i, track in objects.items()), default=0.0)
+        if speed == 0.0:
+            return 1, 0.0
+        duration = 1.0 / sensor.rate_hz
+        allowed = sensor.range_noise_sigma_m if sensor.range_noise_sigma_m > 0 else 0.01
+        n = int(min(MAX_SLICES, max(1, np.ceil(speed * duration / allowed))))
+        return n, speed * duration / n / 2.0
+
+    def sweep(self, sensor, index: int, start_time_s: float, body: MotionTrack,
+              objects: dict[int, MotionTrack] | None = None, noise: bool = True) -> Sweep:
+        """Sweep number ``index`` of ``sensor`` starting at ``start_time_s`` (seconds on the
+        tracks' clock), carried by ``body``, with the moving parts on their ``objects`` tracks
+        (part index -> track); ``noise=False`` reports exact ranges."""
+        objects = objects or {}
+        beams = emission(sensor, index)
+        n = len(beams.time)
+        draws = stream(self.seed, "lidar", sensor.name, index).standard_normal(n) if noise else np.zeros(n)
+        mount = np.eye(4)
+        mount[:3, :3] = body_from_sensor(sensor)
+        count, bound = self.slices(sensor, objects)
+        edges = np.linspace(0.0, 1.0 / sensor.rate_hz, count + 1)
+        which = np.clip(np.searchsorted(edges, beams.time, side="right") - 1, 0, count - 1)
+        hits = _Hits(n)
+        placed = []  # per slice: part -> world_from_object used for its beams
+        for k in range(count):
+            rows = np.flatnonzero(which == k)
+            middle = start_time_s + (edges[k] + edges[k + 1]) / 2.0
+            placed.append({i: track.at(middle)[0] for i, track in objects.items()})
+            if not len(rows):
+                continue
+            if objects:
+                self.geometry.set_matrices(placed[k])
+            poses = matmul_exact(body.at(start_time_s + beams.time[rows]), mount[None])
+            origins = poses[:, :3, 3]
+            directions = rows_times(beams.directions[rows], np.ascontiguousarray(np.swapaxes(poses[:, :3, :3], 1, 2)))
+            self._cast(rows, origins, directions, hits)
+        reference = matmul_exact(body.at(start_time_s)[0], mount)
+        frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
+        scan, world = self._scan(sensor, index, start_time_s, beams, draws, hits, reference, frozen)
+        return Sweep(scan, world, bound, count)
+
+    def _cast(self, rows: np.ndarray, origins: np.ndarray, directions: np.ndarray, hits: "_Hits") -> None:
+        """First opaque hits of the rays of ``rows``, through up to MAX_GLASS_FACES glass faces."""
+        travelled = np.zeros(len(rows))
+        panes = np.zeros(len(rows), dtype=np.int64)
+        live = np.arange(len(rows))
+        start = origins.copy()
+        for _ in range(physics.MAX_GLASS_FACES + 1):
+            t, part, face, normal = self.geometry.cast_faces(start[live], directions[live])
+            met = np.flatnonzero(part >= 0)
+            glass = self.transparent[self.first_face[part[met]] + face[met]]
+            done, through = met[~glass], met[glass]
+            hits.store(rows[live[done]], travelled[live[done]] + t[done], part[done], face[done],
+                       normal[done], directions[live[done]], panes[live[done]], origins[live[done]])
+            step = t[through] + PASS_THROUGH_M
+            travelled[live[through]] += step
+            start[live[through]] += step[:, None] * directions[live[through]]
+            panes[live[through]] += 1
+            live = live[through]
+            if not len(live):
+                break
+
+    def _scan(self, sensor, index, start_time_s, beams, draws, hits: "_Hits", reference: np.ndarray,
+              frozen: "_Freeze") -> tuple[Scan, np.ndarray]:
+        """The sweep's detected returns as a :class:`Scan`, and their float64 world points."""
+        rows = np.flatnonzero(hits.part >= 0)
+        part, face = hits.part[rows], hits.face[rows]
+        rho = self.reflectivity[self.first_face[part] + face]
+        n, d = hits.normal[rows], hits.direction[rows]
+        cos = np.abs((n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1]) + n[:, 2] * d[:, 2])
+        tau = physics.transmission(hits.panes[rows])
+        exact = hits.range[rows]
+        measured = physics.noisy(exact, sensor.range_noise_sigma_m, draws[rows])
+        keep = physics.detected(sensor, rho, cos, exact, measured, tau)
+        rows, part, measured = rows[keep], part[keep], measured[keep]
+        world = hits.origin[rows] + measured[:, None] * hits.direction[rows]
+        deskewed = apply_affine(affine_inverse(reference), frozen.at_reference(world, rows, part))
+        scan = Scan(sensor.name, index, float(start_time_s), reference,
+                    (beams.directions[rows] * measured[:, None]).astype(np.float32), deskewed.astype(np.float32),
+                    physics.intensity(rho[keep], cos[keep], tau[keep]).astype(np.float32),
+                    beams.ring[rows].astype(np.uint16), beams.time[rows].astype(np.float32),
+                    self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16))
+        return scan, world
+
+
+class _Freeze:
+    """Moves returns on moving objects to where their surface point was at the sweep's
+    reference time: p_ref = M(t_ref) M(t_slice)^-1 p (the scene frozen at the reference time)."""
+
+    def __init__(self, slice_of_beam: np.ndarray, placed: list[dict], reference: dict):
+        self.slice_of_beam, self.placed, self.reference = slice_of_beam, placed, reference
+
+    def at_reference(self, world: np.ndarray, rows: np.ndarray, part: np.ndarray) -> np.ndarray:
+        out = world.copy()
+        for i, ref in self.reference.items():
+            for k in np.unique(self.slice_of_beam[rows[part == i]]):
+                sel = np.flatnonzero((part == i) & (self.slice_of_beam[rows] == k))
+                move = matmul_exact(ref, affine_inverse(self.placed[k][i]))
+                out[sel] = apply_affine(move, world[sel])
+        return out
+
+
+class _Hits:
+    """Per beam of a sweep: its opaque hit (part -1: none), range, face, world normal and
+    direction, glass panes passed, and origin."""
+
+    def __init__(self, n: int):
+        self.part = np.full(n, -1, dtype=np.int64)
+        self.face = np.full(n, -1, dtype=np.int64)
+        self.range = np.full(n, np.inf)
+        self.normal = np.zeros((n, 3))
+        self.direction = np.zeros((n, 3))
+        self.origin = np.zeros((n, 3))
+        self.panes = np.zeros(n, dtype=np.int64)
+
+    def store(self, rows, range_m, part, face, normal, direction, panes, origin) -> None:
+        self.part[rows], self.face[rows], self.range[rows] = part, face, range_m
+        self.normal[rows], self.direction[rows], self.panes[rows], self.origin[rows] = normal, direction, panes, origin
+
+
+def _face_values(values, count: int, default, dtype) -> np.ndarray:
+    """A part's per-face optics, or ``default`` for every face."""
+    if values is None:
+        return np.full(count, default, dtype=dtype)
+    values = np.asarray(values, dtype=dtype)
+    if values.shape != (count,):
+        raise ValueError(f"per-face LiDAR optics hold {values.shape} values for {count} faces")
+    return values
+
+
+def _radius(part) -> float:
+    """The largest distance of a part's vertices from its own origin (metres)."""
+    if not len(part.vertices):
+        return 0.0
+    v = np.asarray(part.vertices, dtype=np.float64)
+    return float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])))
