@@ -8,8 +8,9 @@ of every text file; every binary file little-endian, one row per return, in firi
 - ``velodyne/NNNNNN.bin``: float32 (x, y, z, intensity): the raw, skewed ``Scan.xyz`` (metres,
   sensor frame at each return's time) and ``Scan.intensity`` (0..1): what KITTI's tools read
   with ``np.fromfile(f, dtype=np.float32).reshape(-1, 4)`` (pykitti.utils.load_velo_scan);
-- ``velodyne_deskewed/NNNNNN.bin``: the same with ``Scan.xyz_deskewed`` (sensor frame at the
-  sweep's start: world = world_from_sensor @ p);
+- ``velodyne_deskewed/NNNNNN.bin``: the same with ``Scan.xyz_deskewed`` (the scene frozen at
+  the sweep's start, moving objects included, in the sensor frame then: world =
+  world_from_sensor @ p);
 - ``labels/NNNNNN.label``: uint32 ``label | instance << 16`` as SemanticKITTI: the class id
   (``label & 0xFFFF``, an index into ``labels.yaml``) and the object id (``label >> 16``, the
   ``instance`` modality's id); ids >= 65536 are refused;
@@ -37,7 +38,8 @@ of every text file; every binary file little-endian, one row per return, in firi
   ``sensor`` (its name), ``sensor_summary`` (the sensor's parameters, as the caller gives
   them), ``conventions``, ``files``, ``classes`` and per scan ``index``, ``start_time_s``,
   ``world_from_sensor`` (4x4 nested lists, exact floats), ``returns`` (count), ``change``
-  (whether ``changes/`` holds it).
+  (whether ``changes/`` holds it), ``motion_bound_m`` (metres: no return is further from
+  where its surface was at the return's time; null when not given).
 
 Every file is written whole through a temporary file renamed into place. Readers check each
 file against the seed's manifest (exporters.jsonfile.read_checked_bytes) and report a missing,
@@ -186,8 +188,10 @@ class ScanWriter:
         self.written: list[str] = []
         self.folder.mkdir(parents=True, exist_ok=True)
 
-    def add(self, scan: Scan) -> None:
-        """Write ``scan``'s per-return files; scans come in order of index, from 0, one sensor."""
+    def add(self, scan: Scan, motion_bound_m: float | None = None) -> None:
+        """Write ``scan``'s per-return files; scans come in order of index, from 0, one sensor.
+        ``motion_bound_m``: the sweep's motion bound (generator/lidar/scanner.py ``Sweep``),
+        recorded in lidar.json."""
         if scan.index != len(self.rows):
             raise ValueError(f"scan index {scan.index}: expected {len(self.rows)} (scans come in order, from 0)")
         if self.sensor not in (None, scan.sensor):
@@ -201,7 +205,8 @@ class ScanWriter:
         self.sensor = scan.sensor
         self.poses.append(pose)
         self.rows.append({"index": int(scan.index), "start_time_s": float(scan.start_time_s),
-                          "world_from_sensor": pose.tolist(), "returns": len(scan), "change": "changes" in arrays})
+                          "world_from_sensor": pose.tolist(), "returns": len(scan), "change": "changes" in arrays,
+                          "motion_bound_m": None if motion_bound_m is None else float(motion_bound_m)})
 
     def close(self) -> list[Path]:
         """Write the per-trajectory files; returns every file written (absolute paths, in order)."""

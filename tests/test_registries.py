@@ -323,11 +323,12 @@ def test_an_executor_dropped_into_the_package_brings_its_options(tmp_path, monke
 
 def test_every_export_lives_beside_its_format():
     home = {"boxes3d": "boxes3d", "coco": "coco", "colmap": "colmap", "coverage": "coverage", "frames": "frames",
-            "map": "previews", "nerfstudio": "nerfstudio", "previews": "previews", "tracks": "tracks"}
+            "map": "previews", "nerfstudio": "nerfstudio", "previews": "previews", "tracks": "tracks",
+            "lidar": "lidar_scans"}
     assert set(home) <= set(load_sinks())
     for sink, module in home.items():
         assert SINKS.origins[sink].startswith(f"exporters.{module}."), SINKS.origins[sink]
-    assert [o.flag for o in export_options()] == ["--colmap-text"]
+    assert [o.flag for o in export_options()] == ["--colmap-text", "--lidar"]
 
 
 def test_unknown_export_and_export_option_are_one_line():
@@ -336,10 +337,17 @@ def test_unknown_export_and_export_option_are_one_line():
     assert one_line(exc) == f"unknown export 'csv_none'; known: {', '.join(SINKS.names())}"
     with pytest.raises(ValueError) as exc:
         RunConfig(exports={"csv_none": True}).validated()
-    assert one_line(exc) == "unknown export option 'csv_none'; the exports' options are: colmap_text"
+    assert one_line(exc) == "unknown export option 'csv_none'; the exports' options are: colmap_text, lidar"
     with pytest.raises(ValueError) as exc:
         RunConfig(exports={"colmap_text": "yes"}).validated()
     assert one_line(exc) == "--colmap-text (colmap_text) must be True or False, got 'yes'"
+    with pytest.raises(ValueError) as exc:
+        RunConfig(exports={"lidar": ["vlp16", "nope"]}).validated()
+    assert one_line(exc).startswith("--lidar (lidar): unknown LiDAR 'nope'")
+    with pytest.raises(ValueError) as exc:
+        RunConfig(exports={"lidar": "vlp16"}).validated()
+    assert one_line(exc) == "--lidar (lidar) must be a list of names, got 'vlp16'"
+    assert RunConfig(exports={"lidar": ["vlp16", "tls"]}).validated().exports["lidar"] == ["vlp16", "tls"]
 
 
 def test_a_sink_registered_twice_is_refused():
@@ -353,11 +361,11 @@ def test_a_sink_registered_twice_is_refused():
 def test_export_options_keep_the_manifest_config_keys():
     """A seed's parameters keep their keys and values: colmap_text sits beside the others."""
     keys = {"scene_preset", "render_preset", "resolution", "frames", "trajectories", "points_density", "max_depth",
-            "scoring_density", "colmap_text", "device", "outputs"}
+            "scoring_density", "colmap_text", "lidar", "device", "outputs"}
     assert set(RunConfig().to_dict()) == keys and RunConfig().to_dict()["colmap_text"] is False
     config = RunConfig("small", exports={"colmap_text": True}).to_dict()
     assert config["colmap_text"] is True and RunConfig.from_dict(config).to_dict() == config
-    assert RunConfig.from_dict(config).exports == {"colmap_text": True}
+    assert RunConfig.from_dict(config).exports == {"colmap_text": True, "lidar": None}
 
 
 PROBE_SINK = """
@@ -387,7 +395,7 @@ def test_an_export_dropped_into_the_package_is_found_with_its_option(tmp_path, m
         config = parse_args(["--out", str(tmp_path / "out"), *TINY, "--zz-probe-rows"]).config
         assert config.to_dict()["zz_probe_rows"] is True and config.to_dict()["colmap_text"] is False
         assert RunConfig.from_dict(config.to_dict()) == config
-    assert "zz_probe" not in SINKS and [o.flag for o in export_options()] == ["--colmap-text"]
+    assert "zz_probe" not in SINKS and [o.flag for o in export_options()] == ["--colmap-text", "--lidar"]
 
 
 def test_origin_names_module_and_qualified_name():

@@ -139,13 +139,25 @@ def export_values(given: dict) -> dict:
 
 
 def check_export_values(values: dict) -> None:
-    """ValueError if an on/off export option (``action="store_true"``) holds anything but a bool."""
+    """ValueError if an on/off export option (``action="store_true"``) holds anything but a
+    bool, or a repeatable one (``action="append"``) anything but None or a list of values its
+    ``type`` accepts."""
+    import argparse
+
     from exporters.sinks import export_options
 
     for option in export_options():
         value = values[option.dest]
         if option.action in ("store_true", "store_false") and not isinstance(value, bool):
             raise ValueError(f"{option.flag} ({option.dest}) must be True or False, got {value!r}")
+        if option.action == "append" and value is not None:
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                raise ValueError(f"{option.flag} ({option.dest}) must be a list of names, got {value!r}")
+            for v in value:
+                try:
+                    option.type(v) if option.type else v
+                except argparse.ArgumentTypeError as exc:
+                    raise ValueError(f"{option.flag} ({option.dest}): {exc}") from None
 
 
 def canonical_config(config: dict) -> dict:
