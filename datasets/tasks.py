@@ -17,7 +17,8 @@ from generator.checks import check_integer
 from .scene import DatasetError, Scene, Sequence, check_index
 
 
-def _scenes(paths: str | Path | Scene | Iterable) -> list[Scene]:
+def scenes_of(paths: str | Path | Scene | Iterable) -> list[Scene]:
+    """Scenes from seed folders (one path, a Scene, or several); DatasetError for none."""
     if isinstance(paths, (str, Path, Scene)):
         paths = [paths]
     scenes = [p if isinstance(p, Scene) else Scene(p) for p in paths]
@@ -109,7 +110,7 @@ class FrameDataset(TaskDataset):
     def __init__(self, paths, trajectories: list[str] | None = None, transform: Callable | None = None,
                  as_tensor: bool = False, keys: tuple[str, ...] | None = None, annotations: bool = False):
         super().__init__(transform, as_tensor)
-        self.scenes = _scenes(paths)
+        self.scenes = scenes_of(paths)
         kinds = trajectory_kinds(self.scenes, trajectories)
         sequences = _sequences(self.scenes, kinds)
         self.keys, self.annotations = checked_keys(keys, sequences), annotations
@@ -150,7 +151,7 @@ class ClipDataset(TaskDataset):
         super().__init__(transform, as_tensor)
         length, stride = check_integer("length", length, 1), check_integer("stride", stride, 1)
         _check_count("max_points", max_points)
-        self.scenes, self.length, self.stride, self.max_points = _scenes(paths), length, stride, max_points
+        self.scenes, self.length, self.stride, self.max_points = scenes_of(paths), length, stride, max_points
         kinds = trajectory_kinds(self.scenes, trajectories)
         self.keys = checked_keys(keys, _sequences(self.scenes, kinds))
         self.index: list[tuple[int, str, int]] = []
@@ -210,7 +211,7 @@ class PointCloudDataset(TaskDataset):
                  transform: Callable | None = None, as_tensor: bool = False):
         super().__init__(transform, as_tensor)
         _check_count("num_points", num_points)
-        self.scenes, self.num_points, self.static_only = _scenes(paths), num_points, static_only
+        self.scenes, self.num_points, self.static_only = scenes_of(paths), num_points, static_only
 
     def __len__(self) -> int:
         return len(self.scenes)

@@ -4,6 +4,7 @@
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
   python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
   python -m evaluation change --gt SEED_FOLDER --stages K-1 K --pred changes.npz|changes.ply [--tau 0.1] [--kind orbit] [--json out.json]
+  python -m evaluation scans --gt SEED_FOLDER/orbit/lidar/os1-128 --pred PREDICTIONS_FOLDER [--json out.json]
 
 Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot, --rrd)
 never land on an input of the run or inside an input folder, inside a generated seed folder,
@@ -66,9 +67,14 @@ def parse_args(argv=None) -> argparse.Namespace:
                     help="change clouds: match distance in metres (default 0.1, strict <)")
     ch.add_argument("--kind", help="change masks: the trajectory they are for (default: the only one)")
     ch.add_argument("--json", type=Path, help="write the scores and every parameter here")
+    s = sub.add_parser("scans", help="score a labelling of LiDAR sweeps: IoU per class over every return (docs/lidar.md)")
+    s.add_argument("--gt", type=Path, required=True, help="a scan folder: SEED/<trajectory>/lidar/<NAME> (--lidar NAME)")
+    s.add_argument("--pred", type=Path, required=True, help="folder of NNNNNN.label (uint32 per return, class id in "
+                   "the low 16 bits), or holding them in predictions/")
+    s.add_argument("--json", type=Path, help="write the scores and every parameter here")
     args, extra = p.parse_known_args(argv)
     if extra:  # said by the task's own parser, so that its --help is the one pointed to
-        {"reconstruction": r, "coverage": c, "tracks": k, "change": ch}[args.task].error(
+        {"reconstruction": r, "coverage": c, "tracks": k, "change": ch, "scans": s}[args.task].error(
             f"unrecognized arguments: {' '.join(extra)}")
     if args.task == "reconstruction" and args.crop_margin is not None and not args.crop:
         r.error("--crop-margin applies to --crop; add --crop, or leave --crop-margin out")
@@ -141,6 +147,11 @@ def main(argv=None) -> int:
 
             results = score_change(args.gt, args.stages[0], args.stages[1], args.pred, args.tau, args.kind)
             print(change_table(results))
+        elif args.task == "scans":
+            from .scans import scans_table, score_scans
+
+            results = score_scans(args.gt, args.pred)
+            print(scans_table(results))
         elif args.task == "tracks":
             results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)
             print(tracks_table(results))

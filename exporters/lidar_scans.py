@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from generator.cli_args import Option
-from generator.lidar.motion import MotionTrack
+from generator.lidar.motion import MotionTrack, body_pose
 from generator.lidar.scanner import Scanner
 from generator.lidar.sensors import PRESETS, lidar
 
@@ -34,22 +34,6 @@ def lidar_name(text: str) -> str:
         return lidar(text).name
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def body_pose(world_from_camera: np.ndarray) -> np.ndarray:
-    """world_from_body: the camera's centre, x along its view turned level (along the image's
-    up direction when it looks straight down or up), z up, y = z x x."""
-    m = np.asarray(world_from_camera, dtype=np.float64)
-    forward = m[:3, 2].copy()
-    if forward[0] * forward[0] + forward[1] * forward[1] < 1e-12:
-        forward = -m[:3, 1]  # straight down: the top of the image is ahead
-    x, y = forward[0], forward[1]
-    n = float(np.sqrt(x * x + y * y))
-    out = np.eye(4)
-    out[:3, 0] = (x / n, y / n, 0.0)
-    out[:3, 1] = (-y / n, x / n, 0.0)
-    out[:3, 3] = m[:3, 3]
-    return out
 
 
 def sweep_starts(sensor, times: np.ndarray) -> list[float]:

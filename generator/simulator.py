@@ -30,12 +30,13 @@ from .geometry.spawn import respawn_pose, sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
+from .lidar_api import LidarScans
 from .paper_api import PaperAPI
 from .passes import RenderOutput
 from .view_render import ViewRenderer
 
 
-class Simulator(CameraMoves, PaperAPI):
+class Simulator(CameraMoves, LidarScans, PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
@@ -69,7 +70,8 @@ class Simulator(CameraMoves, PaperAPI):
         verbose: print what was found (points, labels) to stderr.
 
     The paper's names (``n_points``, ``camera_matrix``, ``set_camera_from_next_camera``...)
-    work too: docs/simulator-api.md. Assigning ``max_pcl_depth``,
+    work too: docs/simulator-api.md. ``scan(sensor)`` gives a LiDAR sweep from the camera
+    (docs/lidar.md). Assigning ``max_pcl_depth``,
     ``segmentation_sensitivity``, ``collision_radius``, ``ground_truth`` or
     ``observed_points_mask`` later is checked as in the constructor.
     """

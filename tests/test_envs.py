@@ -414,3 +414,23 @@ def test_bad_arguments_name_the_argument(tmp_path):
     assert check_keywords(seeds=[0])["max_depth"] == 20.0  # the constructor's defaults
     assert ExplorationEnv(seeds=[0], max_depth=math.inf, cache_dir=tmp_path).max_depth == math.inf
     assert ExplorationEnv(seeds=[0], rgb=np.bool_(True), render_preset="default").rgb is True
+
+
+def test_a_lidar_is_observed_per_beam_and_agrees_with_the_depth_image(rooms):
+    """lidar='vlp16': each beam's range (0: none) and class; the beam fired straight ahead
+    (half a turn after the start behind, ring 8 at +1 degree) meets the far wall."""
+    env = make(rooms[:1], lidar="vlp16")
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    ranges, labels = obs["lidar_range"], obs["lidar_label"]
+    assert ranges.shape == labels.shape == (16 * 1800,)
+    assert ((ranges > 0) == (labels >= 0)).all() and (ranges > 0).mean() > 0.5  # walls all round, the floor below
+    assert set(np.unique(labels[labels >= 0])) <= set(range(len(env.sim.labels)))
+    # in the room of 12 m, every return lies within the room's diagonal of the camera
+    assert ranges.max() < np.hypot(np.hypot(12.4, 12.4), 3.0)
+    ahead = 900 * 16 + 8  # column 900 of 1800, ring 8: azimuth 0 (the heading, +y), elevation +1 degree
+    far_wall = (6.0 - (-3.0)) / np.cos(np.radians(1.0))  # its inner face at y = 6, the camera at y = -3
+    assert abs(ranges[ahead] - far_wall) < 0.1 and env.sim.labels[labels[ahead]] == "Wall"
+    with pytest.raises(ValueError, match="unknown LiDAR 'radar'"):
+        make(rooms[:1], lidar="radar")
+    env.close()

@@ -11,6 +11,7 @@ Entities (world: metres, Z up; class ids = label ids of labels.json, 65535 unlab
     world/<kind>/camera/tracks    per frame visible tracked points at their pixel positions (2D)
     world/<kind>/tracks           per frame the same points at their world positions (3D)
     coverage/<kind>               per frame coverage after the frame (share of surface points, 0..1)
+    world/<kind>/lidar/<NAME>     per sweep, the returns of a --lidar sensor, coloured by class (scans.py)
 
 Timelines: ``frame`` (t = 0 .. T-1 of each trajectory) and ``time`` (the frame's timestamp, s).
 A seed is opened with :func:`open_scene`: an ordinary seed folder, or one stage
@@ -25,6 +26,7 @@ from datasets.scene import DatasetError, Scene, Sequence, read_point_cloud
 
 from .common import FRAME_TIMELINE, MAX_POINTS, TIME_TIMELINE, annotation_context, class_ids, subsample_stride
 from .images import log_images
+from .scans import log_scans
 
 CLOUD_RADIUS = 0.03   # metres: GT points
 TRACK_RADIUS_UI = 1.0  # UI points: tracked points, 2D and 3D (thousands per frame: small, so the image shows)
@@ -90,16 +92,17 @@ def default_file_name(scene: Scene | Stage) -> str:
 def record_scene(rec, scene: Scene, kinds: list[str] | None = None, max_points: int = MAX_POINTS,
                  progress=None) -> dict:
     """Log everything of ``scene`` (trajectories ``kinds``, default all) on ``rec``; returns
-    counts (``points``: GT points logged, ``frames``: per trajectory)."""
+    counts (``points``: GT points logged, ``frames`` and ``sweeps``: per trajectory)."""
     import rerun as rr
 
     kinds = scene.trajectories if kinds is None else kinds
     rec.log("/", annotation_context(scene.labels), static=True)
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    counts = {"points": log_cloud(rec, scene, max_points), "frames": {}}
+    counts = {"points": log_cloud(rec, scene, max_points), "frames": {}, "sweeps": {}}
     log_mesh(rec, scene)
     for i, kind in enumerate(kinds):
         counts["frames"][kind] = log_sequence(rec, scene[kind], progress, PATH_COLORS[i % len(PATH_COLORS)])
+        counts["sweeps"][kind] = log_scans(rec, scene[kind])
     return counts
 
 

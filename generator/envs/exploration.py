@@ -55,6 +55,10 @@ class ExplorationEnv(gym.Env):
         render_preset: Cycles preset for ``rgb`` ('preview', 'default', 'high').
         cache_dir: where built sites are kept (default ~/.cache/buildee/sites).
         render_mode: None or 'rgb_array' (depth and labels side by side, or the RGB).
+        lidar: None, or a LiDAR (a preset's name, e.g. 'vlp16', or 'NAME@drone';
+            docs/lidar.md) whose sweep from the camera (``Simulator.scan``) is also
+            observed, per beam in the sensor's emission order: 'lidar_range' (N,) float32
+            metres (0: no return) and 'lidar_label' (N,) int32 class ids (-1: no return).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -64,7 +68,7 @@ class ExplorationEnv(gym.Env):
                  max_depth: float = 20.0, points_density: float = 5.0, coverage: str = "all",
                  collision_penalty: float = 0.0, start: str = "default", rgb: bool = False,
                  render_preset: str = "preview", cache_dir: str | os.PathLike | None = None,
-                 render_mode: str | None = None):
+                 render_mode: str | None = None, lidar: str | None = None):
         # the arguments by name (locals() holds nothing else yet; __class__ is super()'s cell)
         options = check_keywords(**{k: v for k, v in locals().items() if k not in ("self", "__class__")})
         super().__init__()
@@ -75,6 +79,7 @@ class ExplorationEnv(gym.Env):
         self.coverage_set, self.start_rule = options["coverage"], options["start"]
         self.rgb, self.render_preset = options["rgb"], options["render_preset"]
         self.render_mode = options["render_mode"]
+        self.lidar = options["lidar"]
         self.scene_preset, self.cache_dir = options["scene_preset"], options["cache_dir"]
         self._sources = options["sources"]
         self._scenes: dict[int, SceneSpec] = {}
@@ -93,6 +98,10 @@ class ExplorationEnv(gym.Env):
         }
         if self.rgb:
             obs["rgb"] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
+        if self.lidar is not None:
+            beams = self.lidar.rays_per_sweep()
+            obs["lidar_range"] = spaces.Box(0.0, np.inf, shape=(beams,), dtype=np.float32)
+            obs["lidar_label"] = spaces.Box(-1, MAX_LABEL_ID, shape=(beams,), dtype=np.int32)
         self.observation_space = spaces.Dict(obs)
 
         self.sim = None  # the Simulator of the current scene
@@ -244,8 +253,20 @@ class ExplorationEnv(gym.Env):
                "coverage": np.array([self.coverage], dtype=np.float64)}
         if self.rgb:
             obs["rgb"] = (np.clip(self.sim.render().rgb, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+        if self.lidar is not None:
+            obs |= self._lidar_observation()
         self._last_obs = obs
         return obs
+
+    def _lidar_observation(self) -> dict:
+        """The sweep from the camera, per beam: range (0: none) and class id (-1: none)."""
+        sweep = self.sim.scan(self.lidar, index=self._steps)
+        n = self.lidar.rays_per_sweep()
+        ranges, labels = np.zeros(n, np.float32), np.full(n, -1, np.int32)
+        xyz = sweep.scan.xyz.astype(np.float64)
+        ranges[sweep.beam] = np.sqrt(xyz[:, 0] * xyz[:, 0] + xyz[:, 1] * xyz[:, 1] + xyz[:, 2] * xyz[:, 2])
+        labels[sweep.beam] = sweep.scan.label
+        return {"lidar_range": ranges, "lidar_label": labels}
 
     @property
     def coverage(self) -> float:
@@ -327,7 +348,19 @@ def check_keywords(**keywords) -> dict:
         "cache_dir": check_cache_dir(kw["cache_dir"]),
         "sources": _sources(kw["seeds"], kw["blend_files"]),
         "action_space": _choice("action_space", kw["action_space"], ("discrete", "continuous")),
+        "lidar": _lidar(kw["lidar"]),
     }
+
+
+def _lidar(value):
+    """None, or the LiDAR named ``value`` (generator/lidar/sensors.py)."""
+    if value is None:
+        return None
+    from ..lidar.sensors import lidar
+
+    if not isinstance(value, str):
+        raise ValueError(f"lidar must be None or a LiDAR's name (e.g. 'vlp16'), got {value!r}")
+    return lidar(value)
 
 
 def _choice(name: str, value, choices) -> str:

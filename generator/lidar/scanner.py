@@ -39,11 +39,13 @@ PASS_THROUGH_M = 1e-4  # a beam that passed a pane goes on from this far beyond 
 class Sweep:
     """A sweep's returns, their float64 world positions ``world`` (N, 3) at the returns' own
     times (the scan's files hold float32: a few micrometres of rounding at tens of metres),
-    and its motion bound: no return is further than ``motion_bound_m`` metres from where the
-    moving surface it met was at the return's time."""
+    ``beam`` (N,) int64 the index of each return's beam in the sensor's emission (its
+    ``directions``, ``ring``, ``time``), and its motion bound: no return is further than
+    ``motion_bound_m`` metres from where the moving surface it met was at the return's time."""
 
     scan: Scan
     world: np.ndarray
+    beam: np.ndarray
     motion_bound_m: float
     slices: int
 
@@ -111,8 +113,8 @@ class Scanner:
             self._cast(rows, origins, directions, hits)
         reference = matmul_exact(body.at(start_time_s)[0], mount)
         frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
-        scan, world = self._scan(sensor, index, start_time_s, beams, draws, hits, reference, frozen)
-        return Sweep(scan, world, bound, count)
+        scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, hits, reference, frozen)
+        return Sweep(scan, world, beam, bound, count)
 
     def _cast(self, rows: np.ndarray, origins: np.ndarray, directions: np.ndarray, hits: "_Hits") -> None:
         """First opaque hits of the rays of ``rows``, through up to MAX_GLASS_FACES glass faces."""
@@ -136,8 +138,9 @@ class Scanner:
                 break
 
     def _scan(self, sensor, index, start_time_s, beams, draws, hits: "_Hits", reference: np.ndarray,
-              frozen: "_Freeze") -> tuple[Scan, np.ndarray]:
-        """The sweep's detected returns as a :class:`Scan`, and their float64 world points."""
+              frozen: "_Freeze") -> tuple[Scan, np.ndarray, np.ndarray]:
+        """The sweep's detected returns as a :class:`Scan`, their float64 world points and
+        their beams."""
         rows = np.flatnonzero(hits.part >= 0)
         part, face = hits.part[rows], hits.face[rows]
         rho = self.reflectivity[self.first_face[part] + face]
@@ -155,7 +158,7 @@ class Scanner:
                     physics.intensity(rho[keep], cos[keep], tau[keep]).astype(np.float32),
                     beams.ring[rows].astype(np.uint16), beams.time[rows].astype(np.float32),
                     self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16))
-        return scan, world
+        return scan, world, rows
 
 
 class _Freeze:
