@@ -41,8 +41,9 @@ MAX_GLASS_FACES = 8  # a beam crosses at most this many glass faces; past them i
 def transmission(panes: np.ndarray) -> np.ndarray:
     """tau: the two-way transmission through ``panes`` (N,) glass faces crossed (float64)."""
     tau = np.ones(len(panes))
+    glazed = np.flatnonzero(panes > 0)
     for k in range(int(np.max(panes, initial=0))):
-        tau = np.where(panes > k, tau * (GLASS_TRANSMISSION * GLASS_TRANSMISSION), tau)
+        tau[glazed] = np.where(panes[glazed] > k, tau[glazed] * (GLASS_TRANSMISSION * GLASS_TRANSMISSION), tau[glazed])
     return tau
 
 

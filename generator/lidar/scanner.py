@@ -107,35 +107,35 @@ class Scanner:
                 continue
             if objects:
                 self.geometry.set_matrices(placed[k])
-            poses = matmul_exact(body.at(start_time_s + beams.time[rows]), mount[None])
-            origins = poses[:, :3, 3]
-            directions = rows_times(beams.directions[rows], np.ascontiguousarray(np.swapaxes(poses[:, :3, :3], 1, 2)))
-            self._cast(rows, origins, directions, hits)
+            hits.origin[rows], hits.direction[rows] = _world_rays(body, mount, start_time_s, beams, rows)
+            self._cast(rows, hits)
         reference = matmul_exact(body.at(start_time_s)[0], mount)
         frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
         scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, hits, reference, frozen)
         return Sweep(scan, world, beam, bound, count)
 
-    def _cast(self, rows: np.ndarray, origins: np.ndarray, directions: np.ndarray, hits: "_Hits") -> None:
-        """First opaque hits of the rays of ``rows``, through up to MAX_GLASS_FACES glass faces."""
+    def _cast(self, rows: np.ndarray, hits: "_Hits") -> None:
+        """First opaque hits of the beams ``rows`` (their world rays in ``hits``), through up
+        to MAX_GLASS_FACES glass faces."""
+        directions = hits.direction[rows]
+        start = hits.origin[rows]
         travelled = np.zeros(len(rows))
         panes = np.zeros(len(rows), dtype=np.int64)
         live = np.arange(len(rows))
-        start = origins.copy()
         for _ in range(physics.MAX_GLASS_FACES + 1):
-            t, part, face, normal = self.geometry.cast_faces(start[live], directions[live])
+            t, part, face, normal = self.geometry.cast_faces(start, directions[live])
             met = np.flatnonzero(part >= 0)
             glass = self.transparent[self.first_face[part[met]] + face[met]]
             done, through = met[~glass], met[glass]
-            hits.store(rows[live[done]], travelled[live[done]] + t[done], part[done], face[done],
-                       normal[done], directions[live[done]], panes[live[done]], origins[live[done]])
-            step = t[through] + PASS_THROUGH_M
-            travelled[live[through]] += step
-            start[live[through]] += step[:, None] * directions[live[through]]
-            panes[live[through]] += 1
-            live = live[through]
-            if not len(live):
+            hits.store(rows[live[done]], travelled[live[done]] + t[done], part[done], face[done], normal[done],
+                       panes[live[done]])
+            if not len(through):
                 break
+            step = t[through] + PASS_THROUGH_M
+            live = live[through]
+            travelled[live] += step
+            panes[live] += 1
+            start = start[through] + step[:, None] * directions[live]
 
     def _scan(self, sensor, index, start_time_s, beams, draws, hits: "_Hits", reference: np.ndarray,
               frozen: "_Freeze") -> tuple[Scan, np.ndarray, np.ndarray]:
@@ -161,6 +161,17 @@ class Scanner:
         return scan, world, rows
 
 
+def _world_rays(body: MotionTrack, mount: np.ndarray, start_time_s: float, beams, rows: np.ndarray):
+    """(origins, directions) (M, 3) in the world of the beams ``rows``, each from the sensor's
+    pose at its firing time (computed once per distinct firing time: a spinning sensor's
+    beams of one column share it)."""
+    times, inverse = np.unique(beams.time[rows], return_inverse=True)
+    poses = matmul_exact(body.at(start_time_s + times), mount[None])
+    turn = np.ascontiguousarray(np.swapaxes(poses[:, :3, :3], 1, 2))
+    directions = rows_times(beams.directions[rows], turn[0] if len(times) == 1 else turn[inverse])
+    return poses[inverse, :3, 3], directions
+
+
 class _Freeze:
     """Moves returns on moving objects to where their surface point was at the sweep's
     reference time: p_ref = M(t_ref) M(t_slice)^-1 p (the scene frozen at the reference time)."""
@@ -179,21 +190,21 @@ class _Freeze:
 
 
 class _Hits:
-    """Per beam of a sweep: its opaque hit (part -1: none), range, face, world normal and
-    direction, glass panes passed, and origin."""
+    """Per beam of a sweep: its world ray (origin, direction), its opaque hit (part -1: none),
+    range, face, world normal, and the glass faces it passed."""
 
     def __init__(self, n: int):
         self.part = np.full(n, -1, dtype=np.int64)
         self.face = np.full(n, -1, dtype=np.int64)
         self.range = np.full(n, np.inf)
-        self.normal = np.zeros((n, 3))
+        self.normal = np.zeros((n, 3), dtype=np.float32)
         self.direction = np.zeros((n, 3))
         self.origin = np.zeros((n, 3))
         self.panes = np.zeros(n, dtype=np.int64)
 
-    def store(self, rows, range_m, part, face, normal, direction, panes, origin) -> None:
+    def store(self, rows, range_m, part, face, normal, panes) -> None:
         self.part[rows], self.face[rows], self.range[rows] = part, face, range_m
-        self.normal[rows], self.direction[rows], self.panes[rows], self.origin[rows] = normal, direction, panes, origin
+        self.normal[rows], self.panes[rows] = normal, panes
 
 
 def _face_values(values, count: int, default, dtype) -> np.ndarray:
