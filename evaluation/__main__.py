@@ -4,7 +4,7 @@
   python -m evaluation coverage --gt SEED_FOLDER --trajectory trajectory.npz|COLMAP_DIR [--json out.json] [--plot out.png]
   python -m evaluation tracks --gt SEED_FOLDER/orbit/tracks.h5 --pred my_tracks.npz [--resize-to 256x256] [--json out.json]
   python -m evaluation change --gt SEED_FOLDER --stages K-1 K --pred changes.npz|changes.ply [--tau 0.1] [--kind orbit] [--json out.json]
-  python -m evaluation scans --gt SEED_FOLDER/orbit/lidar/os1-128 --pred PREDICTIONS_FOLDER [--json out.json]
+  python -m evaluation scans --gt SEED_FOLDER/orbit/lidar/os1-128 --pred PREDICTIONS_FOLDER [--change] [--json out.json]
 
 Bad input: one line on stderr, exit code 2, nothing written. Outputs (--json, --ply, --plot, --rrd)
 never land on an input of the run or inside an input folder, inside a generated seed folder,
@@ -71,6 +71,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     s.add_argument("--gt", type=Path, required=True, help="a scan folder: SEED/<trajectory>/lidar/<NAME> (--lidar NAME)")
     s.add_argument("--pred", type=Path, required=True, help="folder of NNNNNN.label (uint32 per return, class id in "
                    "the low 16 bits), or holding them in predictions/")
+    s.add_argument("--change", action="store_true", help="score NNNNNN.change (int8 change status per return) "
+                   "against a timeline stage's change labels instead")
     s.add_argument("--json", type=Path, help="write the scores and every parameter here")
     args, extra = p.parse_known_args(argv)
     if extra:  # said by the task's own parser, so that its --help is the one pointed to
@@ -150,7 +152,7 @@ def main(argv=None) -> int:
         elif args.task == "scans":
             from .scans import scans_table, score_scans
 
-            results = score_scans(args.gt, args.pred)
+            results = score_scans(args.gt, args.pred, args.change)
             print(scans_table(results))
         elif args.task == "tracks":
             results = score_tracks(args.gt, args.pred, args.query_mode, args.resize_to)

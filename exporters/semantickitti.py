@@ -244,6 +244,30 @@ def write_scans(folder: str | Path, scans: list[Scan], sensor_summary: dict, cla
     return writer.close()
 
 
+def write_scan_changes(folder: str | Path, changes: list[np.ndarray]) -> list[Path]:
+    """Add each scan's change status (int8 per return, exporters.changes.STATUS codes) to the
+    finished scan folder ``folder`` (a timeline's stage k > 0, once its changes are known):
+    ``changes/NNNNNN.bin`` per scan, then lidar.json again with ``change`` true (written last,
+    as before). Returns the files written (absolute paths)."""
+    folder = Path(folder)
+    doc = json.loads((folder / LIDAR_JSON).read_text())
+    if len(changes) != len(doc["scans"]):
+        raise ValueError(f"{folder}: {len(changes)} change arrays for {len(doc['scans'])} scans")
+    written = []
+    for row, change in zip(doc["scans"], changes):
+        change = np.asarray(change)
+        if change.shape != (row["returns"],) or change.dtype.kind not in "iu":
+            raise ValueError(f"{folder}: scan {row['index']}: change needs {row['returns']} integer values, got "
+                             f"{change.shape} {change.dtype}")
+        path = folder / scan_file("changes", row["index"])
+        path.parent.mkdir(exist_ok=True)
+        write_whole(path, change.astype("<i1").tobytes())
+        row["change"] = True
+        written.append(path.absolute())
+    write_whole(folder / LIDAR_JSON, json.dumps(doc, indent=1, allow_nan=False).encode())
+    return written + [(folder / LIDAR_JSON).absolute()]
+
+
 def read_lidar_json(folder: str | Path) -> dict:
     """``folder``'s lidar.json, checked: its format version and its keys (DamagedFileError
     otherwise); each row of ``scans`` has its ``world_from_sensor`` as a (4, 4) float64 array."""

@@ -128,9 +128,11 @@ def seed_folder(finished):
 
 @pytest.fixture(scope="session")
 def timeline_seed_folder(tmp_path_factory):
-    """A real timeline seed of 3 stages (python -m generator --phases 3, seed 1, orbit only),
+    """A real timeline seed of 3 stages (python -m generator --phases 3, seed 1, orbit only, with
+    a VLP-16's sweeps),
     built once and shared read-only by the tests of the timeline, its readers, the viewer and
     the write guard (a test that changes it works on a copy)."""
     out, _ = built_once(tmp_path_factory, "timeline",
-                        lambda out: run_generator(out, "--seeds", "1", "--phases", "3", "--trajectory", "orbit"))
+                        lambda out: run_generator(out, "--seeds", "1", "--phases", "3", "--trajectory", "orbit",
+                                                              "--lidar", "vlp16"))
     return out / "seed_000001"

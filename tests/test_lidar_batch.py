@@ -200,3 +200,47 @@ def test_the_viewer_shows_each_sweep_at_its_world_positions(lidar_seed, tmp_path
         assert abs(when.total_seconds() - scan.start_time_s) < 1e-6
         assert np.allclose(np.asarray(xyz), scan.world_points(), atol=1e-4)
     assert "/world/orbit/lidar/tls" in recording
+
+
+def test_each_stage_of_a_timeline_is_scanned_and_its_returns_carry_their_change(timeline_seed_folder, tmp_path):
+    """--phases 3 --lidar vlp16: every stage is swept from the same poses; a return of stage
+    k > 0 carries the change of the surface it met: its object's status in changes.h5, and on
+    a grown building 'grown' exactly where it lies off stage k-1's surface (checked here with
+    open3d against stage k-1's ground-truth mesh)."""
+    import open3d as o3d
+
+    from conftest import run_evaluation
+    from exporters.changes import STATUS, read_changes
+
+    root = timeline_seed_folder
+    changes = read_changes(root, masks=False)
+    stages = [read_scans(root / f"phase_{k}" / "orbit" / "lidar" / "vlp16") for k in range(3)]
+    assert all(len(s) == 2 for s in stages)
+    for k in (1, 2):
+        assert all(np.array_equal(a.world_from_sensor, b.world_from_sensor) for a, b in zip(stages[0], stages[k]))
+    assert all(s.change is None for s in stages[0])
+    mesh = o3d.io.read_triangle_mesh(str(root / "phase_0" / "ground_truth" / "mesh.ply"))
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
+    seen = set()
+    for scan in stages[1]:
+        status = changes.pairs[1].status[changes.stage_tables[1][scan.instance.astype(np.int64)]]
+        grown = status == STATUS.index("grown")
+        assert np.array_equal(scan.change[~grown], status[~grown])
+        if grown.any():
+            d = scene.compute_distance(o3d.core.Tensor(scan.world_points()[grown].astype(np.float32))).numpy()
+            clear = np.abs(d - 0.01) > 1e-3  # away from the tolerance itself (float32 distances)
+            new = scan.change[grown] == STATUS.index("grown")
+            assert np.array_equal(new[clear], d[clear] > 0.01)
+        seen |= set(np.unique(scan.change).tolist())
+    assert STATUS.index("unchanged") in seen and len(seen) >= 2
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    for scan in stages[1]:
+        scan.change.astype(np.int8).tofile(pred / f"{scan.index:06d}.change")
+    r = run_evaluation("scans", "--gt", root / "phase_1" / "orbit" / "lidar" / "vlp16", "--pred", pred, "--change",
+                       "--json", tmp_path / "change.json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "change.json").read_text())["miou"] == 1.0
+    r = run_evaluation("scans", "--gt", root / "phase_0" / "orbit" / "lidar" / "vlp16", "--pred", pred, "--change")
+    assert_refused(r, "no change labels")

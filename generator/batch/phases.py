@@ -99,6 +99,10 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
         summary["render_device"] = sim.render_device
     summary["trajectories"] = {kind: {"frames": len(t)} for kind, t in trajectories.items()}
     summary["changes"] = write_timeline_changes(folder, K, list(cfg.trajectories))
+    from .scan_changes import label_scan_changes
+
+    summary["changes"]["scans_labelled"] = label_scan_changes(folder, [phase_folder(folder, k) for k in range(K)],
+                                                              list(cfg.trajectories))
     from exporters.phase_previews import timeline_preview
 
     timeline_preview(folder, K, cfg.trajectories[0])

@@ -13,20 +13,18 @@ import inspect
 import math
 import os
 import sys
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ..checks import check_integer, check_number, check_seed, items
+from ..checks import check_integer, check_number
 from ..render_settings import PRESETS as RENDER_PRESETS
-from ..render_settings import check_side
 from ..geometry.camera import heading_pose
 from .actions import CONTINUOUS_FIELDS, DISCRETE_ACTIONS, continuous_targets, discrete_target, heading_and_pitch
+from .keyword_values import MAX_RESOLUTION, choice, flag, lidar_sensor, resolution, sources
 from .scenes import SceneSpec, blend_scene, check_cache_dir, site_is_intact, site_scene
 
-MAX_RESOLUTION = 4096  # pixels, width and height of the observations
 MAX_LABEL_ID = 255  # upper bound of the label observation (ids index Simulator.labels)
 COVERAGE_SETS = ("all", "observable")
 STARTS = ("default", "random")
@@ -331,7 +329,7 @@ def check_keywords(**keywords) -> dict:
     from ..scene.site import PRESETS
 
     return {
-        "resolution": _resolution(kw["resolution"]),
+        "resolution": resolution(kw["resolution"]),
         "step": check_number("step", kw["step"], 0, open_low=True, valid="a finite number of metres > 0"),
         "angle": check_number("angle", kw["angle"], 0, 180, open_low=True, valid="a number of degrees in (0, 180]"),
         "max_steps": check_integer("max_steps", kw["max_steps"], 1),
@@ -339,48 +337,17 @@ def check_keywords(**keywords) -> dict:
                                   valid="a number of metres > 0 (math.inf: no limit)"),
         "points_density": check_number("points_density", kw["points_density"], 0, open_low=True),
         "collision_penalty": check_number("collision_penalty", kw["collision_penalty"], 0),
-        "coverage": _choice("coverage", kw["coverage"], COVERAGE_SETS),
-        "start": _choice("start", kw["start"], STARTS),
-        "rgb": _flag("rgb", kw["rgb"]),
-        "render_preset": _choice("render_preset", kw["render_preset"], tuple(RENDER_PRESETS)),
-        "render_mode": _choice("render_mode", kw["render_mode"], (None, *ExplorationEnv.metadata["render_modes"])),
-        "scene_preset": _choice("scene_preset", kw["scene_preset"], tuple(PRESETS)),
+        "coverage": choice("coverage", kw["coverage"], COVERAGE_SETS),
+        "start": choice("start", kw["start"], STARTS),
+        "rgb": flag("rgb", kw["rgb"]),
+        "render_preset": choice("render_preset", kw["render_preset"], tuple(RENDER_PRESETS)),
+        "render_mode": choice("render_mode", kw["render_mode"], (None, *ExplorationEnv.metadata["render_modes"])),
+        "scene_preset": choice("scene_preset", kw["scene_preset"], tuple(PRESETS)),
         "cache_dir": check_cache_dir(kw["cache_dir"]),
-        "sources": _sources(kw["seeds"], kw["blend_files"]),
-        "action_space": _choice("action_space", kw["action_space"], ("discrete", "continuous")),
-        "lidar": _lidar(kw["lidar"]),
+        "sources": sources(kw["seeds"], kw["blend_files"]),
+        "action_space": choice("action_space", kw["action_space"], ("discrete", "continuous")),
+        "lidar": lidar_sensor(kw["lidar"]),
     }
-
-
-def _lidar(value):
-    """None, or the LiDAR named ``value`` (generator/lidar/sensors.py)."""
-    if value is None:
-        return None
-    from ..lidar.sensors import lidar
-
-    if not isinstance(value, str):
-        raise ValueError(f"lidar must be None or a LiDAR's name (e.g. 'vlp16'), got {value!r}")
-    return lidar(value)
-
-
-def _choice(name: str, value, choices) -> str:
-    if value not in choices:
-        raise ValueError(f"{name} must be one of {', '.join(repr(c) for c in choices)}, got {value!r}")
-    return value
-
-
-def _flag(name: str, value) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
-    return bool(value)
-
-
-def _resolution(value) -> tuple[int, int]:
-    try:
-        w, h = value
-    except (TypeError, ValueError):
-        raise ValueError(f"resolution must be (width, height) in pixels, got {value!r}") from None
-    return check_side("resolution width", w, MAX_RESOLUTION), check_side("resolution height", h, MAX_RESOLUTION)
 
 
 def _discrete(action) -> int:
@@ -388,27 +355,6 @@ def _discrete(action) -> int:
         action = action.item()
     return check_integer("action", action, 0, len(DISCRETE_ACTIONS) - 1,
                          valid=f"an integer in 0..4 ({', '.join(DISCRETE_ACTIONS)})")
-
-
-def _sources(seeds, blend_files) -> list[tuple[str, object]]:
-    lists = [items(value) for value in (seeds, blend_files)]
-    for value, listed in zip((seeds, blend_files), lists):
-        if listed is None:
-            raise ValueError("seeds and blend_files must be lists (e.g. seeds=[0], blend_files=['site.blend']), "
-                             f"got {value!r}")
-    seeds, blend_files = lists
-    out: list[tuple[str, object]] = []
-    for i, s in enumerate(seeds):
-        out.append(("seed", check_seed(f"seeds[{i}]", s)))
-    for i, p in enumerate(blend_files):
-        if not isinstance(p, (str, os.PathLike)):
-            raise ValueError(f"blend_files[{i}] must be a path (str or os.PathLike), got {p!r}")
-        if not Path(p).is_file():
-            raise FileNotFoundError(f"blend_files: {p} is not a file; pass paths of existing .blend files")
-        out.append(("blend", Path(p)))
-    if not out:
-        raise ValueError("no scenes: pass seeds=[...] (procedural sites) and/or blend_files=[...]")
-    return out
 
 
 def _preview(depth: np.ndarray, label: np.ndarray, max_depth: float) -> np.ndarray:
