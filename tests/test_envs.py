@@ -401,7 +401,9 @@ def test_bad_arguments_name_the_argument(tmp_path):
                       (dict(seeds=[0], resolution=(64, 5000)),
                        "^resolution height must be an integer from 4 to 4,096 pixels \\(Blender renders smaller sides as 4\\), got 5000"),
                       (dict(seeds=[0], max_steps=2.0), "^max_steps must be an integer >= 1, got 2.0"),
-                      (dict(seeds=[0], points_density="5"), "^points_density must be a finite number > 0, got '5'")):
+                      (dict(seeds=[0], points_density="5"), "^points_density must be a finite number > 0, got '5'"),
+                      (dict(seeds=[0], lidar=16), "^lidar must be None or a LiDAR's name"),
+                      (dict(seeds=[0], lidar="vlp17"), "^unknown LiDAR 'vlp17'")):
         with pytest.raises((ValueError, FileNotFoundError), match=words) as err:
             ExplorationEnv(**kw)
         assert "\n" not in str(err.value)
@@ -409,7 +411,7 @@ def test_bad_arguments_name_the_argument(tmp_path):
             check_keywords(**kw)  # the constructor's checks are these, declared once
         assert str(direct.value) == str(err.value)
     with pytest.raises(ValueError, match=r"^ExplorationEnv has no keyword 'colour'; its keywords are seeds, "
-                                         r"blend_files, .*, render_mode$"):
+                                         r"blend_files, .*, render_mode, lidar$"):
         check_keywords(seeds=[0], colour="red")
     assert check_keywords(seeds=[0])["max_depth"] == 20.0  # the constructor's defaults
     assert ExplorationEnv(seeds=[0], max_depth=math.inf, cache_dir=tmp_path).max_depth == math.inf
