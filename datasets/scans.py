@@ -26,6 +26,17 @@ def sensors_of(trajectory_folder: Path) -> list[str]:
     return sorted(p.parent.name for p in root.glob("*/lidar.json")) if root.is_dir() else []
 
 
+def checked(read, *args):
+    """``read(*args)`` (a reader of exporters/semantickitti.py), a damaged or missing file as
+    one DatasetError line."""
+    from exporters.hdf5 import DamagedFileError
+
+    try:
+        return read(*args)
+    except (DamagedFileError, ValueError) as exc:
+        raise DatasetError(str(exc)) from None
+
+
 class ScanDataset(TaskDataset):
     """One item per sweep of ``sensor`` (a name given to ``--lidar``, e.g. ``os1-128`` or
     ``vlp16@drone``) over the trajectories of the seeds ``paths``: a dict with ``points``
@@ -52,7 +63,7 @@ class ScanDataset(TaskDataset):
                     raise DatasetError(f"{scene.path / kind}: no sweeps of {self.sensor!r} (has "
                                        f"{', '.join(have) or 'none'}); write them with python -m generator "
                                        f"--lidar {self.sensor}")
-                self.docs[s, kind] = read_lidar_json(folder)
+                self.docs[s, kind] = checked(read_lidar_json, folder)
                 self.index += [(s, kind, k) for k in range(len(self.docs[s, kind]["scans"]))]
 
     def __len__(self) -> int:
@@ -61,7 +72,7 @@ class ScanDataset(TaskDataset):
     def __getitem__(self, i: int) -> dict:
         s, kind, k = self.index[check_index(i, len(self), "ScanDataset item")]
         scene = self.scenes[s]
-        scan = read_scan(scan_folder(scene.path / kind, self.sensor), k, self.docs[s, kind])
+        scan = checked(read_scan, scan_folder(scene.path / kind, self.sensor), k, self.docs[s, kind])
         xyz = scan.xyz_deskewed if self.deskewed else scan.xyz
         sample = {"points": np.concatenate([xyz, scan.intensity[:, None]], axis=1).astype(np.float32),
                   "label": scan.label.astype(np.int64), "instance": scan.instance.astype(np.int64),

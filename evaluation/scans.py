@@ -1,6 +1,6 @@
 """Scoring a predicted labelling of LiDAR sweeps (``python -m evaluation scans``), as
 SemanticKITTI's benchmark does: per-class IoU over every return of every sweep, and their
-mean (docs/lidar.md, "Scoring a labelling").
+mean (docs/evaluation.md, "LiDAR sweeps").
 
 Ground truth: a scan folder written by ``python -m generator --lidar NAME``
 (``SEED/<trajectory>/lidar/<NAME>``, read by exporters/semantickitti.py). Prediction: a
@@ -67,6 +67,8 @@ def score_scans(gt: str | Path, pred: str | Path, change: bool = False) -> dict:
     if change and not all(row["change"] for row in doc["scans"]):
         raise InputError(f"{gt}: its sweeps have no change labels (stage 0 of a timeline, or no timeline: "
                          "python -m generator --phases K --lidar NAME labels stages 1..K-1)")
+    if not doc["scans"]:
+        raise InputError(f"{gt}: holds no sweeps; nothing to score")
     classes = list(STATUS) if change else doc["classes"]
     truth, guess = [], []
     for k, row in enumerate(doc["scans"]):

@@ -11,6 +11,9 @@ of every text file; every binary file little-endian, one row per return, in firi
 - ``velodyne_deskewed/NNNNNN.bin``: the same with ``Scan.xyz_deskewed`` (the scene frozen at
   the sweep's start, moving objects included, in the sensor frame then: world =
   world_from_sensor @ p);
+- ``velodyne_exact/NNNNNN.bin``: the same with ``Scan.xyz_exact`` (ground truth: the surface
+  point each beam met, without the range noise), for sweeps that keep it (``exact`` in
+  lidar.json);
 - ``labels/NNNNNN.label``: uint32 ``label | instance << 16`` as SemanticKITTI: the class id
   (``label & 0xFFFF``, an index into ``labels.yaml``) and the object id (``label >> 16``, the
   ``instance`` modality's id); ids >= 65536 are refused;
@@ -67,12 +70,14 @@ LABELS_YAML = "labels.yaml"
 DIGITS = 6
 ID_LIMIT = 1 << 16  # class and object ids share a uint32: 16 bits each
 # per-return files: folder -> (extension, little-endian dtype, columns)
-PER_RETURN = {"velodyne": (".bin", "<f4", 4), "velodyne_deskewed": (".bin", "<f4", 4), "labels": (".label", "<u4", 1),
+PER_RETURN = {"velodyne": (".bin", "<f4", 4), "velodyne_deskewed": (".bin", "<f4", 4),
+              "velodyne_exact": (".bin", "<f4", 4), "labels": (".label", "<u4", 1),
               "times": (".bin", "<f4", 1), "rings": (".bin", "<u2", 1), "changes": (".bin", "<i1", 1)}
 CONVENTIONS = {
     "sensor_frame": "KITTI Velodyne: x forward, y left, z up, metres, origin at the optical centre",
     "velodyne": "float32 x, y, z, intensity (0..1): raw returns, each in the sensor frame at its own time (skewed)",
     "velodyne_deskewed": "float32 x, y, z, intensity: the scene frozen at the sweep's start, sensor frame then",
+    "velodyne_exact": "float32 x, y, z, intensity: velodyne_deskewed without the range noise (ground truth), where kept",
     "labels": "uint32 class_id | object_id << 16 (SemanticKITTI); class ids index labels.yaml",
     "times": "float32 seconds after the sweep's start_time_s", "rings": "uint16 beam index, 0 = lowest beam",
     "changes": "int8 change status since the previous stage (exporters.changes.STATUS), only where set",
@@ -128,7 +133,9 @@ def per_return_arrays(scan: Scan, classes: int) -> dict[str, np.ndarray]:
     n = len(scan)
     intensity = _fit(scan, "intensity", "<f4")
     out = {}
-    for kind, name in (("velodyne", "xyz"), ("velodyne_deskewed", "xyz_deskewed")):
+    for kind, name in (("velodyne", "xyz"), ("velodyne_deskewed", "xyz_deskewed"), ("velodyne_exact", "xyz_exact")):
+        if getattr(scan, name) is None:
+            continue
         rows = np.empty((n, 4), "<f4")
         rows[:, :3], rows[:, 3] = _fit(scan, name, "<f4").reshape(n, 3), intensity
         out[kind] = rows
@@ -206,6 +213,7 @@ class ScanWriter:
         self.poses.append(pose)
         self.rows.append({"index": int(scan.index), "start_time_s": float(scan.start_time_s),
                           "world_from_sensor": pose.tolist(), "returns": len(scan), "change": "changes" in arrays,
+                          "exact": "velodyne_exact" in arrays,
                           "motion_bound_m": None if motion_bound_m is None else float(motion_bound_m)})
 
     def close(self) -> list[Path]:
@@ -282,8 +290,9 @@ def read_lidar_json(folder: str | Path) -> dict:
             row["index"], row["returns"], row["change"] = int(row["index"]), int(row["returns"]), bool(row["change"])
             row["start_time_s"] = float(row["start_time_s"])
             row["world_from_sensor"] = np.array(row["world_from_sensor"], np.float64).reshape(4, 4)
-        if not (isinstance(doc["sensor_summary"], dict) and isinstance(doc["classes"], list)):
-            raise TypeError("sensor_summary or classes of the wrong type")
+        if not (isinstance(doc["sensor_summary"], dict) and isinstance(doc["classes"], list)
+                and isinstance(doc["sensor"], str)):
+            raise TypeError("sensor, sensor_summary or classes of the wrong type")
     except (KeyError, TypeError, ValueError) as exc:
         raise DamagedFileError(f"{path}: not a lidar.json of this format ({exc.__class__.__name__}: {exc}); "
                                f"{REMEDY}") from None
@@ -334,7 +343,8 @@ def read_scan(folder: str | Path, index: int, doc: dict | None = None) -> Scan:
                 intensity=raw[:, 3].copy(), ring=read_array(folder, "rings", index, n),
                 time=read_array(folder, "times", index, n), label=(label & 0xFFFF).astype(np.uint16),
                 instance=(label >> 16).astype(np.uint16),
-                change=read_array(folder, "changes", index, n) if row["change"] else None)
+                change=read_array(folder, "changes", index, n) if row["change"] else None,
+                xyz_exact=read_array(folder, "velodyne_exact", index, n)[:, :3].copy() if row.get("exact") else None)
 
 
 def read_scans(folder: str | Path) -> list[Scan]:

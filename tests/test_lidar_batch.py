@@ -35,6 +35,10 @@ def test_sweeps_are_written_in_the_semantickitti_layout_and_listed_in_the_manife
     assert len(scans) == 2  # 3 frames at 10 fps: 0.2 s, two whole 0.1 s sweeps
     assert [s.start_time_s for s in scans] == [0.0, 0.1]
     assert all(len(s) > 1000 for s in scans)
+    # the noise-free surface points: the noisy ones lie along the same beams, the noise's sigma away
+    for s in scans:
+        noise = np.linalg.norm(s.xyz_deskewed.astype(np.float64) - s.xyz_exact, axis=1)
+        assert 0.5 * doc["sensor_summary"]["range_noise_sigma_m"] < np.sqrt(np.mean(noise ** 2)) < 2 * doc["sensor_summary"]["range_noise_sigma_m"]
     velodyne = np.fromfile(folder / "velodyne" / "000001.bin", dtype=np.float32).reshape(-1, 4)
     label = np.fromfile(folder / "labels" / "000001.label", dtype=np.uint32)
     assert np.array_equal(velodyne[:, :3], scans[1].xyz) and np.array_equal(label & 0xFFFF, scans[1].label)
@@ -228,7 +232,8 @@ def test_each_stage_of_a_timeline_is_scanned_and_its_returns_carry_their_change(
         grown = status == STATUS.index("grown")
         assert np.array_equal(scan.change[~grown], status[~grown])
         if grown.any():
-            d = scene.compute_distance(o3d.core.Tensor(scan.world_points()[grown].astype(np.float32))).numpy()
+            exact = scan.xyz_exact.astype(np.float64) @ scan.world_from_sensor[:3, :3].T + scan.world_from_sensor[:3, 3]
+            d = scene.compute_distance(o3d.core.Tensor(exact[grown].astype(np.float32))).numpy()
             clear = np.abs(d - 0.01) > 1e-3  # away from the tolerance itself (float32 distances)
             new = scan.change[grown] == STATUS.index("grown")
             assert np.array_equal(new[clear], d[clear] > 0.01)

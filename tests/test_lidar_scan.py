@@ -95,6 +95,7 @@ def test_without_noise_every_return_lies_on_the_surface_of_the_part_it_is_labell
     assert len(scan) > 10_000
     per_part = np.stack([exact_distance(world, p) for p in parts], axis=1)
     assert per_part.min(axis=1).max() < 1e-5
+    assert np.allclose(scan.xyz_exact, scan.xyz_deskewed, atol=1e-6)  # without noise: the same points
     # the float32 points of the files: within their rounding of the float64 ones
     assert np.abs(scan.world_points() - world).max() < 4 * np.abs(world).max() * 2.0**-24 + 1e-6
     nearest = per_part.argmin(axis=1)
@@ -121,6 +122,8 @@ def test_range_noise_has_the_stated_sigma_and_the_same_seed_the_same_bytes():
     residual = np.linalg.norm(noisy.xyz[b].astype(np.float64), axis=1) - np.linalg.norm(exact.xyz[a].astype(np.float64), axis=1)
     assert abs(residual.mean()) < 0.1 * sensor.range_noise_sigma_m
     assert residual.std() == pytest.approx(sensor.range_noise_sigma_m, rel=0.05)
+    # the noise-free points kept beside the noisy ones are the noise-free sweep's
+    assert np.allclose(noisy.xyz_exact[b], exact.xyz_deskewed[a], atol=1e-5)
     other = scanner(parts, seed=1)[0].sweep(sensor, 0, 0.0, still(at(0, 0, 1.8))).scan
     assert not np.array_equal(other.xyz[: len(noisy)], noisy.xyz[: len(other)])
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets.scans import sensors_of
+from datasets.scans import checked, sensors_of
 from exporters.semantickitti import read_lidar_json, read_scan, scan_folder
 
 from .common import FRAME_TIMELINE, TIME_TIMELINE, class_ids
@@ -27,9 +27,9 @@ def log_scans(rec, seq) -> int:
     count = 0
     for name in sensors_of(seq.folder):
         folder = scan_folder(seq.folder, name)
-        doc = read_lidar_json(folder)
+        doc = checked(read_lidar_json, folder)
         for k in range(len(doc["scans"])):
-            scan = read_scan(folder, k, doc)
+            scan = checked(read_scan, folder, k, doc)
             frame = max(0, int(np.searchsorted(seq.timestamps, scan.start_time_s + 1e-9, side="right")) - 1)
             rec.set_time(FRAME_TIMELINE, sequence=frame)
             rec.set_time(TIME_TIMELINE, duration=scan.start_time_s)

@@ -2,15 +2,26 @@
 docs/lidar.md, "Over time"): once ``changes.h5`` is written, each return of stage k > 0 gets
 the change status, since stage k - 1, of the surface it met (exporters.changes.STATUS codes):
 the status of its object (unchanged, added, moved), and for an object that grew (a building
-with new floors) ``grown`` where the return lies farther than the changes' point tolerance
-(1 cm) from stage k - 1's surface and ``unchanged`` where it lies on it, the rule of
-changes.h5's ``points_added``. Stage 0's returns have none."""
+with new floors) ``grown`` where the surface point the beam met (without the range noise:
+``Scan.xyz_exact``) lies farther than the changes' point tolerance (1 cm) from stage k - 1's
+surface and ``unchanged`` where it lies on it, the rule of changes.h5's ``points_added``.
+Stage 0's returns have none."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+
+
+def surface_points(scan) -> np.ndarray:
+    """(N, 3) world positions of the surface points the returns met, without the range noise
+    (``Scan.xyz_exact``; the noisy points where a sweep did not keep them)."""
+    from ..geometry.camera import apply_affine
+
+    if scan.xyz_exact is None:
+        return scan.world_points()
+    return apply_affine(scan.world_from_sensor, scan.xyz_exact.astype(np.float64))
 
 
 def label_scan_changes(folder: Path, stages: list[Path], kinds: list[str]) -> int:
@@ -37,7 +48,7 @@ def label_scan_changes(folder: Path, stages: list[Path], kinds: list[str]) -> in
                     code = status[table[scan.instance.astype(np.int64)]].astype(np.int8)
                     grown = np.flatnonzero(code == STATUS.index("grown"))
                     if len(grown):
-                        on_old = ch.surface_distance(scan.world_points()[grown], before) <= ch.POINT_TOLERANCE
+                        on_old = ch.surface_distance(surface_points(scan)[grown], before) <= ch.POINT_TOLERANCE
                         code[grown[on_old]] = STATUS.index("unchanged")
                     out.append(code)
                 write_scan_changes(scans, out)

@@ -111,17 +111,20 @@ class MotionTrack:
             out[rows, :3, :3] = rot * scale[:, None, :]
         return out
 
-    def speed_bound(self, radius: float) -> float:
-        """Metres per second: no point within ``radius`` metres of the pose's origin moves
-        faster between two frames (|translation step| + radius x angle step, over the step's
-        time)."""
+    def speed_bound(self, radius: float, start: float = -np.inf, end: float = np.inf) -> float:
+        """Metres per second: no point within ``radius`` metres (in the object's own units, times
+        its largest scale) of the pose's origin moves faster between two frames whose interval
+        meets [``start``, ``end``] seconds (|translation step| + radius x angle step, over the
+        step's time); 0 outside the frames' span (the pose stays put)."""
         if len(self.times) < 2:
             return 0.0
         dt = np.diff(self.times)
         step = np.diff(self.matrices[:, :3, 3], axis=0)
         moves = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1] + step[:, 2] * step[:, 2])
         turns = np.array([angle for _, angle in self.steps])
-        return float(np.max((moves + radius * turns) / dt))
+        reach = radius * float(np.max(self.scales))
+        meets = (self.times[1:] >= start) & (self.times[:-1] <= end)
+        return float(np.max(((moves + reach * turns) / dt)[meets], initial=0.0))
 
 
 def body_pose(world_from_camera: np.ndarray) -> np.ndarray:

@@ -147,8 +147,9 @@ def emit_rosette(s, sweep_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     """Sweep ``sweep_index`` of the rosette: it continues the pattern where sweep - 1 stopped."""
     n = count_rosette(s)
     i = np.arange(n, dtype=np.int64)
-    g = (i + np.int64(sweep_index) * n).astype(np.float64)  # the point's number since sweep 0
-    line = (i % s.lines).astype(np.float64) / s.lines  # each line's rosette turned by a 1/lines turn
+    number = i + np.int64(sweep_index) * n  # the point's number since sweep 0
+    g = number.astype(np.float64)
+    line = (number % s.lines).astype(np.float64) / s.lines  # each line's rosette turned by a 1/lines turn
     f1, f2 = s.prism_hz
     sin_a, cos_a = sincos(np.mod(g * (f1 / s.points_per_second) + line, 1.0) * TURN)
     sin_b, cos_b = sincos(np.mod(line - g * (f2 / s.points_per_second), 1.0) * TURN)
@@ -157,7 +158,7 @@ def emit_rosette(s, sweep_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     azimuth = u * (s.fov_horizontal_deg * 0.5 * RADIANS_PER_DEGREE)
     elevation = v * (s.fov_vertical_deg * 0.5 * RADIANS_PER_DEGREE)
     time = i.astype(np.float64) / s.points_per_second
-    return unit_directions(elevation, azimuth), (i % s.lines).astype(np.uint16), time
+    return unit_directions(elevation, azimuth), (number % s.lines).astype(np.uint16), time
 
 
 # --- dome -----------------------------------------------------------------------------------

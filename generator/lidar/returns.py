@@ -13,6 +13,8 @@
 - ``label`` is the class id of the surface hit (generator/scene/taxonomy.py: the
   Simulator's label ids), ``instance`` its object's id (the ``instance`` modality's: index
   into the run's instances table); every return hits a surface, so neither is ever unset;
+- ``xyz_exact`` (ground truth, None where not kept): the surface point each beam met, without
+  the range noise, in the frame of ``xyz_deskewed`` (the scene frozen at the reference time);
 - ``change``: on a timeline's stage k > 0, the change status of the object hit since stage
   k - 1 (exporters.changes.STATUS codes: 0 unchanged, 1 added, 2 removed, 3 moved, 4 grown);
   None elsewhere.
@@ -41,14 +43,17 @@ class Scan:
     label: np.ndarray  # (N,) uint16 class id
     instance: np.ndarray  # (N,) uint16 object id
     change: np.ndarray | None = None  # (N,) int8 change status, or None
+    xyz_exact: np.ndarray | None = None  # (N, 3) float32: xyz_deskewed without the range noise (ground truth)
 
     def __post_init__(self):
         n = len(self.xyz)
         for name in ("xyz_deskewed", "intensity", "ring", "time", "label", "instance"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"Scan: {name} has {len(getattr(self, name))} rows, xyz has {n}")
-        if self.change is not None and len(self.change) != n:
-            raise ValueError(f"Scan: change has {len(self.change)} rows, xyz has {n}")
+        for name in ("change", "xyz_exact"):
+            value = getattr(self, name)
+            if value is not None and len(value) != n:
+                raise ValueError(f"Scan: {name} has {len(value)} rows, xyz has {n}")
 
     def __len__(self) -> int:
         return len(self.xyz)

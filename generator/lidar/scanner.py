@@ -71,14 +71,19 @@ class Scanner:
             _face_values(p.face_transparent, len(p.faces), False, bool) for p in geometry.parts])
         self.radius = {i: _radius(geometry.parts[i]) for i in geometry.dynamic_index}
 
-    def slices(self, sensor, objects: dict[int, MotionTrack]) -> tuple[int, float]:
-        """(slices, motion bound in metres) of a sweep of ``sensor`` among ``objects`` (part
-        index -> its track): enough equal slices that the fastest object moves at most the
-        range noise's sigma (1 cm without noise) in one, at most :data:`MAX_SLICES`."""
-        speed = max((track.speed_bound(self.radius.get(i, 0.0)) for i, track in objects.items()), default=0.0)
+    def slices(self, sensor, objects: dict[int, MotionTrack], start_time_s: float = 0.0) -> tuple[int, float]:
+        """(slices, motion bound in metres) of a sweep of ``sensor`` starting at
+        ``start_time_s`` among ``objects`` (part index -> its track): enough equal slices that
+        the fastest object (over the frames the sweep spans) moves at most the range noise's
+        sigma (1 cm without noise) in one, at most :data:`MAX_SLICES` (a long sweep among
+        fast machines, a terrestrial scan's 30 s, may then be bounded above the noise: the
+        bound is recorded with every sweep)."""
+        duration = 1.0 / sensor.rate_hz
+        end = start_time_s + duration
+        speed = max((track.speed_bound(self.radius.get(i, 0.0), start_time_s, end) for i, track in objects.items()),
+                    default=0.0)
         if speed == 0.0:
             return 1, 0.0
-        duration = 1.0 / sensor.rate_hz
         allowed = sensor.range_noise_sigma_m if sensor.range_noise_sigma_m > 0 else 0.01
         n = int(min(MAX_SLICES, max(1, np.ceil(speed * duration / allowed))))
         return n, speed * duration / n / 2.0
@@ -94,7 +99,7 @@ class Scanner:
         draws = stream(self.seed, "lidar", sensor.name, index).standard_normal(n) if noise else np.zeros(n)
         mount = np.eye(4)
         mount[:3, :3] = body_from_sensor(sensor)
-        count, bound = self.slices(sensor, objects)
+        count, bound = self.slices(sensor, objects, start_time_s)
         edges = np.linspace(0.0, 1.0 / sensor.rate_hz, count + 1)
         which = np.clip(np.searchsorted(edges, beams.time, side="right") - 1, 0, count - 1)
         hits = _Hits(n)
@@ -150,14 +155,18 @@ class Scanner:
         exact = hits.range[rows]
         measured = physics.noisy(exact, sensor.range_noise_sigma_m, draws[rows])
         keep = physics.detected(sensor, rho, cos, exact, measured, tau)
-        rows, part, measured = rows[keep], part[keep], measured[keep]
+        rows, part, measured, exact = rows[keep], part[keep], measured[keep], exact[keep]
         world = hits.origin[rows] + measured[:, None] * hits.direction[rows]
-        deskewed = apply_affine(affine_inverse(reference), frozen.at_reference(world, rows, part))
+        to_sensor = affine_inverse(reference)
+        deskewed = apply_affine(to_sensor, frozen.at_reference(world, rows, part))
+        surface = apply_affine(to_sensor, frozen.at_reference(hits.origin[rows] + exact[:, None] * hits.direction[rows],
+                                                              rows, part))
         scan = Scan(sensor.name, index, float(start_time_s), reference,
                     (beams.directions[rows] * measured[:, None]).astype(np.float32), deskewed.astype(np.float32),
                     physics.intensity(rho[keep], cos[keep], tau[keep]).astype(np.float32),
                     beams.ring[rows].astype(np.uint16), beams.time[rows].astype(np.float32),
-                    self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16))
+                    self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16),
+                    xyz_exact=surface.astype(np.float32))
         return scan, world, rows
 
 
