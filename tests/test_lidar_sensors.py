@@ -189,3 +189,18 @@ def test_the_same_sensor_gives_the_same_arrays_read_only():
         for a, b in ((first.directions, again.directions), (first.ring, again.ring), (first.time, again.time)):
             assert a.tobytes() == b.tobytes() and not a.flags.writeable
     assert not math.isnan(emission(lidar("hdl64")).directions.sum())
+
+
+def test_a_parameter_of_the_wrong_type_is_one_line_naming_it():
+    from dataclasses import replace as swap
+
+    base = lidar("vlp16")
+    for kw, says in ((dict(range_min_m="0"), "range_min_m must be a finite number"),
+                     (dict(max_incidence_deg=None), "max_incidence_deg must be a finite number"),
+                     (dict(columns=True), "columns must be a whole number"),
+                     (dict(rate_hz=True), "rate_hz must be a finite number"),
+                     (dict(elevations_deg=["a"]), "elevations_deg must be a tuple of finite numbers"),
+                     (dict(points_per_second=float("inf")), "points_per_second must be a finite number")):
+        with pytest.raises(ValueError, match=says) as err:
+            swap(base, **kw)
+        assert "\n" not in str(err.value)

@@ -55,6 +55,7 @@ class Lidar:
     mount: str = "level"  # "level" | "drone" (generator/lidar/patterns.py: body_from_sensor)
 
     def __post_init__(self):
+        check_types(self)
         object.__setattr__(self, "elevations_deg", tuple(float(e) for e in self.elevations_deg))
         object.__setattr__(self, "prism_hz", tuple(float(f) for f in self.prism_hz))
         check_common(self)
@@ -73,6 +74,24 @@ class Lidar:
         out["rays_per_sweep"] = self.rays_per_sweep()
         out["body_from_sensor"] = [list(row) for row in body_from_sensor(self).tolist()]
         return out
+
+
+def _number(value) -> bool:
+    """A finite real number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def check_types(s: Lidar) -> None:
+    """Each parameter of the type it is declared with: a finite number where a float is, a
+    whole number where an int is, numbers in the tuples (a one-line ValueError naming it)."""
+    for f in dataclasses.fields(s):
+        value = getattr(s, f.name)
+        if f.type == "float" and not _number(value):
+            raise ValueError(f"sensor {s.name!r}: {f.name} must be a finite number, got {value!r}")
+        if f.type == "int" and not (isinstance(value, int) and not isinstance(value, bool)):
+            raise ValueError(f"sensor {s.name!r}: {f.name} must be a whole number, got {value!r}")
+        if f.type.startswith("tuple[float") and not (isinstance(value, (tuple, list)) and all(map(_number, value))):
+            raise ValueError(f"sensor {s.name!r}: {f.name} must be a tuple of finite numbers, got {value!r}")
 
 
 def check_common(s: Lidar) -> None:
