@@ -69,11 +69,8 @@ class LidarSink:
                 self._write(scanner, sensor)
 
     def _scanner(self) -> Scanner:
-        from generator.geometry.raycast import SceneGeometry
-
         c = self.context
-        labels = np.array([row["label_id"] for row in c.instances], dtype=np.int64)
-        return Scanner(SceneGeometry(c.parts), labels, np.arange(len(c.parts)), c.seed)
+        return Scanner.of_parts(c.parts, [row["label_id"] for row in c.instances], c.seed)
 
     def _tracks(self) -> tuple[MotionTrack, dict[int, MotionTrack]]:
         c = self.context

@@ -40,11 +40,9 @@ class LidarScans:
     def _lidar_scanner(self):
         """The Scanner over this Simulator's parts (built on first use: its own two Embree
         structures over the same triangles)."""
-        from .geometry.raycast import SceneGeometry
         from .lidar.scanner import Scanner
 
         if getattr(self, "_lidar", None) is None:
             parts = self.scene_parts()
-            labels = np.array([self.label_ids[p.label] for p in parts], dtype=np.int64)
-            self._lidar = Scanner(SceneGeometry(parts), labels, np.arange(len(parts)), self.seed)
+            self._lidar = Scanner.of_parts(parts, [self.label_ids[p.label] for p in parts], self.seed)
         return self._lidar

@@ -71,6 +71,12 @@ class Scanner:
             _face_values(p.face_transparent, len(p.faces), False, bool) for p in geometry.parts])
         self.radius = {i: _radius(geometry.parts[i]) for i in geometry.dynamic_index}
 
+    @classmethod
+    def of_parts(cls, parts, label_of_part, seed: int) -> "Scanner":
+        """A Scanner over ``parts`` (a scene's rigid parts in object-id order: object id =
+        position) with their class ids ``label_of_part``: its own Embree structures."""
+        return cls(SceneGeometry(parts), np.asarray(label_of_part, dtype=np.int64), np.arange(len(parts)), seed)
+
     def slices(self, sensor, objects: dict[int, MotionTrack], start_time_s: float = 0.0) -> tuple[int, float]:
         """(slices, motion bound in metres) of a sweep of ``sensor`` starting at
         ``start_time_s`` among ``objects`` (part index -> its track): enough equal slices that
