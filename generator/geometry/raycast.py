@@ -195,28 +195,30 @@ class SceneGeometry:
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
         # each structure decides its own hits in float64 (structure.Structure.first_hits); the
         # nearer of the static and the dynamic answer wins
-        origins, directions = np.asarray(origins, dtype=np.float64), np.asarray(directions, dtype=np.float64)
+        from .exact_kernels import float32_rays
+        origins = np.ascontiguousarray(origins, dtype=np.float64)
+        directions = np.ascontiguousarray(directions, dtype=np.float64)
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
-        rays[:, :3] = origins
-        rays[:, 3:] = directions
-        best_t = np.full(n, np.inf)
-        best_part = np.full(n, -1, dtype=np.int64)
-        best_face = np.full(n, -1, dtype=np.int64)
-        best_normal = np.zeros((n, 3), dtype=np.float32) if normals else None
+        float32_rays(origins, directions, rays)
+        best = None
         self._scenes()
         for structure, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
             if structure is None:
                 continue
-            hit, t, gid, face, unit = structure.first_hits(origins, directions, rays, normals)
-            closer = t < best_t[hit]
-            rows = hit[closer]
-            best_t[rows] = t[closer]
-            best_part[rows] = np.asarray(self._geometry_to_part(index), dtype=np.int64)[gid[closer]]
-            best_face[rows] = face[closer]
+            t, gid, face, unit = structure.first_hits(origins, directions, rays, normals)
+            owner = np.asarray(self._geometry_to_part(index) + [-1], dtype=np.int64)  # gid -1 -> part -1
+            if best is None:
+                best = [t, owner[gid], face, unit]
+                continue
+            rows = np.flatnonzero(t < best[0])
+            best[0][rows], best[1][rows], best[2][rows] = t[rows], owner[gid[rows]], face[rows]
             if normals:
-                best_normal[rows] = unit[closer]
-        return best_t, best_part, best_face, best_normal
+                best[3][rows] = unit[rows]
+        if best is None:
+            return (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64),
+                    np.zeros((n, 3), dtype=np.float32) if normals else None)
+        return tuple(best)
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces

@@ -95,60 +95,69 @@ class Structure:
         self._triangles = None
 
     def triangles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(vertices (V, 3) float64, the float32 values Embree holds, of every geometry in
-        order; faces (F, 3) int64 indices into them; first face (G + 1,) int64 of each
-        geometry id)."""
+        """(vertices (V, 3) float32, the values Embree holds, of every geometry in order; faces
+        (F, 3) int32 indices into them; first face (G + 1,) int64 of each geometry id)."""
         if self._vertices is None:
             raise ValueError("this structure was built for occlusion tests only (first_hits=False)")
         if self._triangles is None:
             starts = np.cumsum([0] + [len(v) for v in self._vertices])
             face_start = np.cumsum([0] + [len(f) for f in self._faces]).astype(np.int64)
-            faces = np.concatenate([f.astype(np.int64) + s for f, s in zip(self._faces, starts)])
-            self._triangles = (np.concatenate(self._vertices).astype(np.float64), faces, face_start)
+            if starts[-1] > np.iinfo(np.int32).max:
+                raise ValueError(f"a structure of {starts[-1]:,} vertices: more than int32 indices hold")
+            faces = np.concatenate([(f.astype(np.int64) + s).astype(np.int32) for f, s in zip(self._faces, starts)])
+            self._triangles = (np.concatenate(self._vertices), faces, face_start)
         return self._triangles
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray, rays: np.ndarray, normals: bool):
         """First hits of the float64 rays (``origins``, ``directions``: (N, 3)), ``rays`` (N, 6)
-        being them in float32 (Embree's input): returns (rows (M,) of the rays that hit,
-        t (M,) float64, geometry id (M,) int64, face (M,) int64 index into that geometry's
-        faces, unit normal (M, 3) or None), decided by the steps of the module's docstring."""
+        being them in float32 (Embree's input): returns per ray t (N,) float64 (inf: a miss),
+        geometry id (N,) int64 (-1: a miss), face (N,) int64 index into that geometry's faces
+        (-1: a miss) and unit normal (N, 3) float32 (zero for a miss) or None, decided by the
+        steps of the module's docstring."""
+        from .exact_kernels import proposed_hits
+
         ans = self.scene.cast_rays(tensor(rays))
         t_embree = ans["t_hit"].numpy()
-        rows = np.flatnonzero(np.isfinite(t_embree))
         vertices, faces, face_start = self.triangles()
-        geometry = ans["geometry_ids"].numpy()[rows].astype(np.int64)
-        face = face_start[geometry] + ans["primitive_ids"].numpy()[rows]
-        o, d = origins[rows], directions[rows]
-        t, outside, unit = plane_hits(o, d, vertices, faces[face], normals)
-        done = _meets(t, outside, ON_TRIANGLE_TOL)  # step 1
-        retry = np.flatnonzero(~done & np.isfinite(t))
+        n = len(origins)
+        t, geometry, face, outside = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n)
+        unit, settled = np.empty((n, 3) if normals else (0, 3), dtype=np.float32), np.empty(n, dtype=bool)
+        degenerate = proposed_hits(  # step 1
+            origins, directions, t_embree, ans["geometry_ids"].numpy(), ans["primitive_ids"].numpy(), face_start,
+            vertices, faces, ON_TRIANGLE_TOL, t, geometry, face, outside, unit, settled, normals)
+        retry = np.flatnonzero(~settled & np.isfinite(t))
         if len(retry):  # step 2: the triangle nearest to the float64 plane hit
+            o, d = origins[retry], directions[retry]
             with np.errstate(over="ignore", invalid="ignore"):  # far past the site: found below
-                near = self.scene.compute_closest_points(tensor(o[retry] + t[retry, None] * d[retry]))
+                near = self.scene.compute_closest_points(tensor(o + t[retry, None] * d))
             geometry2 = near["geometry_ids"].numpy().astype(np.int64)
             found = geometry2 < self.count  # none (Embree's invalid id) for a point past float32's range
             retry, geometry2 = retry[found], geometry2[found]
-            face2 = face_start[geometry2] + near["primitive_ids"].numpy()[found]
-            t2, outside2, unit2 = plane_hits(o[retry], d[retry], vertices, faces[face2], normals)
+            face2 = near["primitive_ids"].numpy()[found].astype(np.int64)
+            t2, outside2, unit2 = plane_hits(origins[retry], directions[retry], vertices,
+                                             faces[face_start[geometry2] + face2], normals)
             take = _meets(t2, outside2, ON_TRIANGLE_TOL)
             sel = retry[take]
             t[sel], face[sel], geometry[sel] = t2[take], face2[take], geometry2[take]
             if normals:
                 unit[sel] = unit2[take]
-            done[sel] = True
-        retry = np.flatnonzero(~done)
+            settled[sel] = True
+        retry = np.flatnonzero(~settled)
         retry = retry[~_meets(t[retry], outside[retry], near_edge_tol(t[retry]))]  # step 3 keeps the others
         if len(retry):  # step 4: the float32 ray on Embree's triangle
-            t32, outside32, unit32 = plane_hits(rays[rows[retry], :3], rays[rows[retry], 3:], vertices, faces[face[retry]], normals)
+            t32, outside32, unit32 = plane_hits(rays[retry, :3], rays[retry, 3:], vertices,
+                                                faces[face_start[geometry[retry]] + face[retry]], normals)
             take = _meets(t32, outside32, near_edge_tol(t32))
             sel = retry[take]
             t[sel] = t32[take]
             if normals:
                 unit[sel] = unit32[take]
             retry = retry[~take]
-        lost = retry if not normals else np.union1d(retry, np.flatnonzero(~np.isfinite(unit[:, 0])))
+        lost = retry
+        if normals and degenerate:  # step 5 also gives the normals of degenerate triangles
+            lost = np.union1d(retry, np.flatnonzero(~np.isfinite(unit[:, 0])))
         if len(lost):  # step 5: Embree's own answer
-            t[lost] = t_embree[rows[lost]]
+            t[lost] = t_embree[lost]
             if normals:
-                unit[lost] = ans["primitive_normals"].numpy()[rows[lost]]
-        return rows, t, geometry, face - face_start[geometry], unit
+                unit[lost] = ans["primitive_normals"].numpy()[lost]
+        return t, geometry, face, (unit if normals else None)

@@ -69,6 +69,8 @@ class Emission:
     directions: np.ndarray  # (N, 3) float64 unit vectors, sensor frame (x forward, y left, z up)
     ring: np.ndarray  # (N,) uint16 beam index (see the module's docstring)
     time: np.ndarray  # (N,) float64 seconds after the sweep's start, non-decreasing, in [0, 1 / rate_hz)
+    firing_times: np.ndarray  # (K,) float64 the distinct values of ``time``, increasing
+    firing: np.ndarray  # (N,) int64 each beam's index into ``firing_times`` (beams fired together share it)
 
     def __len__(self) -> int:
         return len(self.time)
@@ -245,9 +247,11 @@ def emission(sensor, sweep_index: int = 0) -> Emission:
 @functools.lru_cache(maxsize=8)
 def cached_emission(sensor, sweep_index: int) -> Emission:
     directions, ring, time = KINDS[sensor.kind].emit(sensor, sweep_index)
-    for a in (directions, ring, time):
+    firing_times, firing = np.unique(time, return_inverse=True)
+    arrays = (directions, ring, time, firing_times, firing.astype(np.int64))
+    for a in arrays:
         a.setflags(write=False)
-    return Emission(directions, ring, time)
+    return Emission(*arrays)
 
 
 def body_directions(sensor, sweep_index: int = 0) -> np.ndarray:

@@ -26,7 +26,7 @@ import numpy as np
 from ..geometry.camera import affine_inverse, apply_affine, matmul_exact, rows_times
 from ..geometry.raycast import SceneGeometry
 from ..geometry.seeding import stream
-from . import physics
+from . import kernels, physics
 from .motion import MotionTrack
 from .returns import Scan
 from .sensors import body_from_sensor, emission
@@ -105,86 +105,98 @@ class Scanner:
         draws = stream(self.seed, "lidar", sensor.name, index).standard_normal(n) if noise else np.zeros(n)
         mount = np.eye(4)
         mount[:3, :3] = body_from_sensor(sensor)
+        origin, direction = _world_rays(body, mount, start_time_s, beams)
         count, bound = self.slices(sensor, objects, start_time_s)
         edges = np.linspace(0.0, 1.0 / sensor.rate_hz, count + 1)
-        which = np.clip(np.searchsorted(edges, beams.time, side="right") - 1, 0, count - 1)
-        hits = _Hits(n)
-        placed = []  # per slice: part -> world_from_object used for its beams
-        for k in range(count):
-            rows = np.flatnonzero(which == k)
-            middle = start_time_s + (edges[k] + edges[k + 1]) / 2.0
-            placed.append({i: track.at(middle)[0] for i, track in objects.items()})
-            if not len(rows):
-                continue
+        placed = [{i: track.at(start_time_s + (edges[k] + edges[k + 1]) / 2.0)[0] for i, track in objects.items()}
+                  for k in range(count)]  # per slice: part -> world_from_object at its middle
+        if count == 1:
+            which = np.zeros(n, dtype=np.int64)
             if objects:
-                self.geometry.set_matrices(placed[k])
-            hits.origin[rows], hits.direction[rows] = _world_rays(body, mount, start_time_s, beams, rows)
-            self._cast(rows, hits)
+                self.geometry.set_matrices(placed[0])
+            hits = self._cast(origin, direction)
+        else:
+            which = np.clip(np.searchsorted(edges, beams.time, side="right") - 1, 0, count - 1)
+            hits = _Hits.empty(n)
+            for k in range(count):
+                rows = np.flatnonzero(which == k)
+                if len(rows):
+                    self.geometry.set_matrices(placed[k])
+                    hits.put(rows, self._cast(origin[rows], direction[rows]))
         reference = matmul_exact(body.at(start_time_s)[0], mount)
         frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
-        scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, hits, reference, frozen)
+        scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, (origin, direction, hits),
+                                       reference, frozen)
         return Sweep(scan, world, beam, bound, count)
 
-    def _cast(self, rows: np.ndarray, hits: "_Hits") -> None:
-        """First opaque hits of the beams ``rows`` (their world rays in ``hits``), through up
+    def _cast(self, origin: np.ndarray, direction: np.ndarray) -> "_Hits":
+        """First opaque hits of the world rays (``origin``, ``direction``: (M, 3)), through up
         to MAX_GLASS_FACES glass faces."""
-        directions = hits.direction[rows]
-        start = hits.origin[rows]
-        travelled = np.zeros(len(rows))
-        panes = np.zeros(len(rows), dtype=np.int64)
-        live = np.arange(len(rows))
-        for _ in range(physics.MAX_GLASS_FACES + 1):
-            t, part, face, normal = self.geometry.cast_faces(start, directions[live])
-            met = np.flatnonzero(part >= 0)
-            glass = self.transparent[self.first_face[part[met]] + face[met]]
-            done, through = met[~glass], met[glass]
-            hits.store(rows[live[done]], travelled[live[done]] + t[done], part[done], face[done], normal[done],
-                       panes[live[done]])
-            if not len(through):
+        hits = _Hits(*self.geometry.cast_faces(origin, direction), np.zeros(len(origin), dtype=np.int64))
+        live = np.flatnonzero(self._glass(hits.part, hits.face))  # beams whose hit so far is a pane
+        travelled, start, t = np.zeros(len(live)), origin[live], hits.range[live]
+        for _ in range(physics.MAX_GLASS_FACES):
+            if not len(live):
                 break
-            step = t[through] + PASS_THROUGH_M
-            live = live[through]
-            travelled[live] += step
-            panes[live] += 1
-            start = start[through] + step[:, None] * directions[live]
+            step = t + PASS_THROUGH_M
+            travelled += step
+            hits.panes[live] += 1
+            start = start + step[:, None] * direction[live]
+            t, part, face, normal = self.geometry.cast_faces(start, direction[live])
+            hits.range[live], hits.part[live], hits.face[live], hits.normal[live] = travelled + t, part, face, normal
+            glass = self._glass(part, face)
+            live, travelled, start, t = live[glass], travelled[glass], start[glass], t[glass]
+        hits.part[live], hits.range[live] = -1, np.inf  # still behind glass: lost
+        return hits
 
-    def _scan(self, sensor, index, start_time_s, beams, draws, hits: "_Hits", reference: np.ndarray,
+    def _glass(self, part: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(M,) bool: the hit face is a glass one (False for a miss)."""
+        met = part >= 0
+        return met & self.transparent[np.where(met, self.first_face[part] + face, 0)]
+
+    def _scan(self, sensor, index, start_time_s, beams, draws, cast, reference: np.ndarray,
               frozen: "_Freeze") -> tuple[Scan, np.ndarray, np.ndarray]:
         """The sweep's detected returns as a :class:`Scan`, their float64 world points and
-        their beams."""
+        their beams; ``cast``: every beam's world ray (origin, direction) and its hit."""
+        origin, direction, hits = cast
         rows = np.flatnonzero(hits.part >= 0)
         part, face = hits.part[rows], hits.face[rows]
         rho = self.reflectivity[self.first_face[part] + face]
-        n, d = hits.normal[rows], hits.direction[rows]
-        cos = np.abs((n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1]) + n[:, 2] * d[:, 2])
+        cos = np.empty(len(rows))
+        kernels.incidence(rows, hits.normal, direction, cos)
         tau = physics.transmission(hits.panes[rows])
         exact = hits.range[rows]
         measured = physics.noisy(exact, sensor.range_noise_sigma_m, draws[rows])
         keep = physics.detected(sensor, rho, cos, exact, measured, tau)
         rows, part, measured, exact = rows[keep], part[keep], measured[keep], exact[keep]
-        world = hits.origin[rows] + measured[:, None] * hits.direction[rows]
+        m = len(rows)
+        world, xyz = np.empty((m, 3)), np.empty((m, 3), dtype=np.float32)
+        deskewed, surface = np.empty((m, 3), dtype=np.float32), np.empty((m, 3), dtype=np.float32)
         to_sensor = affine_inverse(reference)
-        deskewed = apply_affine(to_sensor, frozen.at_reference(world, rows, part))
-        surface = apply_affine(to_sensor, frozen.at_reference(hits.origin[rows] + exact[:, None] * hits.direction[rows],
-                                                              rows, part))
-        scan = Scan(sensor.name, index, float(start_time_s), reference,
-                    (beams.directions[rows] * measured[:, None]).astype(np.float32), deskewed.astype(np.float32),
+        kernels.return_points(rows, origin, direction, beams.directions, measured, exact, to_sensor, world, xyz,
+                              deskewed, surface)
+        moved = np.flatnonzero(np.isin(part, list(frozen.reference)))
+        if len(moved):  # returns on moving objects: their points with the scene frozen at the reference time
+            at = rows[moved], part[moved]
+            deskewed[moved] = apply_affine(to_sensor, frozen.at_reference(world[moved], *at))
+            surface[moved] = apply_affine(to_sensor, frozen.at_reference(
+                origin[rows[moved]] + exact[moved, None] * direction[rows[moved]], *at))
+        scan = Scan(sensor.name, index, float(start_time_s), reference, xyz, deskewed,
                     physics.intensity(rho[keep], cos[keep], tau[keep]).astype(np.float32),
                     beams.ring[rows].astype(np.uint16), beams.time[rows].astype(np.float32),
                     self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16),
-                    xyz_exact=surface.astype(np.float32))
+                    xyz_exact=surface)
         return scan, world, rows
 
 
-def _world_rays(body: MotionTrack, mount: np.ndarray, start_time_s: float, beams, rows: np.ndarray):
-    """(origins, directions) (M, 3) in the world of the beams ``rows``, each from the sensor's
-    pose at its firing time (computed once per distinct firing time: a spinning sensor's
-    beams of one column share it)."""
-    times, inverse = np.unique(beams.time[rows], return_inverse=True)
-    poses = matmul_exact(body.at(start_time_s + times), mount[None])
-    turn = np.ascontiguousarray(np.swapaxes(poses[:, :3, :3], 1, 2))
-    directions = rows_times(beams.directions[rows], turn[0] if len(times) == 1 else turn[inverse])
-    return poses[inverse, :3, 3], directions
+def _world_rays(body: MotionTrack, mount: np.ndarray, start_time_s: float, beams) -> tuple[np.ndarray, np.ndarray]:
+    """(origins, directions) (N, 3) in the world of every beam, each from the sensor's pose at
+    its firing time (computed once per firing time: a spinning sensor's column shares one)."""
+    poses = np.ascontiguousarray(matmul_exact(body.at(start_time_s + beams.firing_times), mount[None]))
+    n = len(beams.time)
+    origin, direction = np.empty((n, 3)), np.empty((n, 3))
+    kernels.posed_rays(beams.directions, beams.firing, poses, origin, direction)
+    return origin, direction
 
 
 class _Freeze:
@@ -205,21 +217,21 @@ class _Freeze:
 
 
 class _Hits:
-    """Per beam of a sweep: its world ray (origin, direction), its opaque hit (part -1: none),
-    range, face, world normal, and the glass faces it passed."""
+    """Per beam: its first opaque hit (part -1: none), range (metres, inf: none), face, world
+    normal (float32), and the glass faces it passed."""
 
-    def __init__(self, n: int):
-        self.part = np.full(n, -1, dtype=np.int64)
-        self.face = np.full(n, -1, dtype=np.int64)
-        self.range = np.full(n, np.inf)
-        self.normal = np.zeros((n, 3), dtype=np.float32)
-        self.direction = np.zeros((n, 3))
-        self.origin = np.zeros((n, 3))
-        self.panes = np.zeros(n, dtype=np.int64)
+    def __init__(self, range_m, part, face, normal, panes):
+        self.range, self.part, self.face, self.normal, self.panes = range_m, part, face, normal, panes
 
-    def store(self, rows, range_m, part, face, normal, panes) -> None:
-        self.part[rows], self.face[rows], self.range[rows] = part, face, range_m
-        self.normal[rows], self.panes[rows] = normal, panes
+    @classmethod
+    def empty(cls, n: int) -> "_Hits":
+        return cls(np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64),
+                   np.zeros((n, 3), dtype=np.float32), np.zeros(n, dtype=np.int64))
+
+    def put(self, rows: np.ndarray, other: "_Hits") -> None:
+        """Beams ``rows`` take ``other``'s hits (one per row, in order)."""
+        self.range[rows], self.part[rows], self.face[rows] = other.range, other.part, other.face
+        self.normal[rows], self.panes[rows] = other.normal, other.panes
 
 
 def _face_values(values, count: int, default, dtype) -> np.ndarray:
