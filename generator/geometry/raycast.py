@@ -45,6 +45,7 @@ class SceneGeometry:
         self._static_closed_built = False
         self._dynamic = None
         self._dynamic_closed = None
+        self._dynamic_closed_built = False
         self._dynamic_dirty = True
         # visibility.PointBlocks of the last point set tested against this scene (a cache)
         self.point_blocks = None
@@ -78,11 +79,14 @@ class SceneGeometry:
 
     def _scenes(self, closed_only: bool = False):
         if self._dynamic_dirty:
-            dyn = [self.parts[i] for i in self.dynamic_index]
-            self._dynamic = _build(dyn)
-            self._dynamic_closed = _build([p for p in dyn if p.closed], first_hits=False)
+            self._dynamic = _build([self.parts[i] for i in self.dynamic_index])
+            self._dynamic_closed, self._dynamic_closed_built = None, False
             self._dynamic_dirty = False
         if closed_only:
+            if not self._dynamic_closed_built:  # built when first asked for: a cast never needs it
+                self._dynamic_closed = _build([self.parts[i] for i in self.dynamic_index if self.parts[i].closed],
+                                              first_hits=False)
+                self._dynamic_closed_built = True
             if not self._static_closed_built:
                 self._static_closed = _build([self.parts[i] for i in self.static_index if self.parts[i].closed], False)
                 self._static_closed_built = True

@@ -108,8 +108,9 @@ class Scanner:
         origin, direction = _world_rays(body, mount, start_time_s, beams)
         count, bound = self.slices(sensor, objects, start_time_s)
         edges = np.linspace(0.0, 1.0 / sensor.rate_hz, count + 1)
-        placed = [{i: track.at(start_time_s + (edges[k] + edges[k + 1]) / 2.0)[0] for i, track in objects.items()}
-                  for k in range(count)]  # per slice: part -> world_from_object at its middle
+        middles = start_time_s + (edges[:-1] + edges[1:]) / 2.0
+        at_middles = {i: track.at(middles) for i, track in objects.items()}
+        placed = [{i: poses[k] for i, poses in at_middles.items()} for k in range(count)]  # per slice: its middle's
         if count == 1:
             which = np.zeros(n, dtype=np.int64)
             if objects:
