@@ -33,7 +33,7 @@ def pixel_geometry(sim, poses: np.ndarray | None = None, object_matrices: np.nda
         raise ValueError(f"poses[{index}] is not the Simulator's current pose")
     g = sim.render_geometry(normals=True)
     return PixelGeometry(sim.K, sim.width, sim.height, index, poses, g.depth, g.instance, g.normal,
-                         dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices)
+                         dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices, sim.lens)
 
 
 def check_trajectory(poses, object_matrices, index, dynamic: int) -> tuple[np.ndarray, np.ndarray, int]:

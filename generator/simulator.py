@@ -30,13 +30,14 @@ from .geometry.spawn import respawn_pose, sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
+from .lens_api import Lenses
 from .lidar_api import LidarScans
 from .paper_api import PaperAPI
 from .passes import RenderOutput
 from .view_render import ViewRenderer
 
 
-class Simulator(CameraMoves, LidarScans, PaperAPI):
+class Simulator(CameraMoves, LidarScans, Lenses, PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
@@ -299,6 +300,7 @@ class Simulator(CameraMoves, LidarScans, PaperAPI):
         visible = visible_points(
             self._geometry, pts.world, pts.world_normals, pts.part, self._world_from_camera, self.K,
             self.width, self.height, ViewLimits(self.clip_start, min(self.clip_end, limit)), self.last_visibility,
+            lens=self.lens,
         )
         if update_mask:
             self._observed |= visible
@@ -316,12 +318,14 @@ class Simulator(CameraMoves, LidarScans, PaperAPI):
         depth = np.asarray(depth)
         if depth.shape != (self.height, self.width):
             raise ValueError(f"depth must have shape {(self.height, self.width)}, got {depth.shape}")
-        return cam_model.depth_to_world_points(depth, self.K, self._world_from_camera)
+        return cam_model.depth_to_world_points(depth, self.K, self._world_from_camera, self.lens)
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World points (N, 3) in metres -> (pixel coordinates (N, 2) float64 as (x, y), with the
         top-left pixel's centre at (0.5, 0.5); planar depths (N,) float64 in metres, <= 0
-        behind the camera) at the current pose. Occlusion and the image bounds are ignored."""
+        behind the camera) at the current pose, through the camera's lens (:meth:`set_lens`;
+        with a distorting lens, points behind the camera give NaN pixels). Occlusion and the
+        image bounds are ignored."""
         try:
             p = np.asarray(points, dtype=np.float64)
         except (TypeError, ValueError):
@@ -329,6 +333,8 @@ class Simulator(CameraMoves, LidarScans, PaperAPI):
         if p is None or p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"points must be an (N, 3) array of world coordinates in metres, got "
                              f"{'shape ' + str(p.shape) if p is not None else repr(points)[:60]}")
+        if not self.lens.ideal:
+            return self.lens.project(self.K, cam_model.world_to_camera(p, self._world_from_camera))
         return cam_model.project(p, self._world_from_camera, self.K)
 
     # ---- camera --------------------------------------------------------------------------
@@ -394,6 +400,8 @@ class Simulator(CameraMoves, LidarScans, PaperAPI):
     def _refresh_intrinsics(self) -> None:
         intr = bcam.read_intrinsics(self._camera)
         self.width, self.height, self.K = intr.width, intr.height, intr.K
+        if not self.lens.ideal:  # the lens's shader holds K and the image size
+            self._apply_lens(self.lens)
 
     def configure_render(self, preset: str | None = None, **overrides) -> RenderSettings:
         """Set render quality: a preset ('preview', 'default', 'high') and/or explicit
@@ -465,4 +473,4 @@ class Simulator(CameraMoves, LidarScans, PaperAPI):
                                            check_flag("normals", normals))
 
     def _camera_model(self) -> CameraModel:
-        return CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end)
+        return CameraModel(self.K, self.width, self.height, self.clip_start, self.clip_end, self.lens)

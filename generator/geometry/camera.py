@@ -318,17 +318,18 @@ def pixel_rays(K: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.stack([x, y, np.ones_like(x)], axis=-1)
 
 
-def depth_to_world_points(depth: np.ndarray, K: np.ndarray, world_from_camera: np.ndarray) -> np.ndarray:
+def depth_to_world_points(depth: np.ndarray, K: np.ndarray, world_from_camera: np.ndarray, lens=None) -> np.ndarray:
     """Unproject a planar depth map (H, W) in metres to world points (H, W, 3).
 
-    Each pixel is unprojected through its centre. Pixels with non-finite or non-positive
-    depth (no surface) give NaN.
+    Each pixel is unprojected through its centre (along the ray of ``lens``,
+    generator/geometry/lens.py, where given). Pixels with non-finite or non-positive depth
+    (no surface) give NaN.
     """
     depth = np.asarray(depth, dtype=np.float64)
     if depth.ndim != 2:
         raise ValueError(f"depth must be a 2D (H, W) array, got shape {depth.shape}")
     h, w = depth.shape
-    rays = pixel_rays(K, w, h)
+    rays = pixel_rays(K, w, h) if lens is None else lens.rays(K, w, h)
     valid = np.isfinite(depth) & (depth > 0)
     pc = rays * np.where(valid, depth, np.nan)[..., None]
     return apply_affine(world_from_camera, pc)  # BLAS-free: the same bits on every CPU

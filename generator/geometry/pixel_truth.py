@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .lens import PINHOLE, Lens
 from .raycam import PixelHits, RayCamera
 from .raycast import SceneGeometry
 
@@ -38,14 +39,15 @@ def check_ground_truth(source: str) -> str:
 
 @dataclass(frozen=True)
 class CameraModel:
-    """What a pixel ray depends on besides the pose: intrinsics (3, 3), image size and the
-    clip range (planar metres)."""
+    """What a pixel ray depends on besides the pose: intrinsics (3, 3), image size, the
+    clip range (planar metres) and the lens model."""
 
     K: np.ndarray
     width: int
     height: int
     clip_start: float
     clip_end: float
+    lens: Lens = PINHOLE
 
 
 def nearer(hits: PixelHits, other: PixelHits) -> PixelHits:
@@ -72,7 +74,7 @@ class PixelTruth:
         OpenCV): depth (H, W) float32 planar metres (+inf: none), part (H, W) int64 (-1: none
         or a filtered object), normal (H, W, 3) camera frame or None without ``normals``.
         The arrays are shared with the next call at the same state: copy before changing."""
-        args = (camera.K, camera.width, camera.height, camera.clip_start, camera.clip_end)
+        args = (camera.K, camera.width, camera.height, camera.clip_start, camera.clip_end, camera.lens)
         if self._camera is None or not self._camera.matches(*args):
             self._camera, self._hits = RayCamera(*args), None
         pose = np.asarray(world_from_camera, dtype=np.float64)

@@ -21,7 +21,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .camera import affine_inverse, matmul_exact, pixel_rays, rows_times
+from .camera import affine_inverse, matmul_exact, rows_times
+from .lens import PINHOLE, Lens
 
 
 class PixelGeometry:
@@ -33,11 +34,12 @@ class PixelGeometry:
     normal_camera (H, W, 3): camera-frame unit normals facing the camera (0: none).
     dynamic_slot (P,) int: for each part, its index into ``object_matrices``' second axis
     (-1 for static parts); object_matrices (T, D, 4, 4): world_from_object at every frame.
+    lens: the camera's lens model (generator/geometry/lens.py; default the ideal pinhole).
     """
 
     def __init__(self, K, width: int, height: int, index: int, poses, depth, part, normal_camera,
-                 dynamic_slot, object_matrices):
-        self.K = np.asarray(K, np.float64)
+                 dynamic_slot, object_matrices, lens: Lens = PINHOLE):
+        self.K, self.lens = np.asarray(K, np.float64), lens
         self.width, self.height, self.index = int(width), int(height), int(index)
         self.poses = np.asarray(poses, np.float64)
         self.depth, self.part = np.asarray(depth), np.asarray(part)
@@ -58,7 +60,7 @@ class PixelGeometry:
     @cached_property
     def world_points(self) -> np.ndarray:
         """(H, W, 3) float64 world positions of the surface points at this frame (NaN: none)."""
-        rays = pixel_rays(self.K, self.width, self.height)  # camera frame, z = 1
+        rays = self.lens.rays(self.K, self.width, self.height)  # camera frame, z = 1
         cam = rays * np.where(self.hit, self.depth, np.nan)[..., None]
         pose = self.poses[self.index]
         return rows_times(cam, pose[:3, :3].T) + pose[:3, 3]
@@ -98,8 +100,12 @@ class PixelGeometry:
         z = cam[..., 2]
         with np.errstate(invalid="ignore", divide="ignore"):
             front = z > 0
-            uvw = rows_times(cam, self.K.T)
-            u, v = uvw[..., 0] / z, uvw[..., 1] / z
+            if self.lens.ideal:
+                uvw = rows_times(cam, self.K.T)
+                u, v = uvw[..., 0] / z, uvw[..., 1] / z
+            else:
+                uv, _ = self.lens.project(self.K, cam.reshape(-1, 3))
+                u, v = uv[:, 0].reshape(z.shape), uv[:, 1].reshape(z.shape)
         jj, ii = np.meshgrid(np.arange(self.width) + 0.5, np.arange(self.height) + 0.5)
         flow = np.stack([u - jj, v - ii], axis=-1)
         flow[~(front & self.hit)] = np.nan

@@ -1,7 +1,7 @@
 """A geometric camera: depth, labels, instances and normals by ray casting, no renderer.
 
-One ray leaves the camera centre through each pixel centre (x, y) = (j + 0.5, i + 0.5)
-and stops at the first triangle of the scene's geometry (open3d / Embree, on the same
+One ray leaves the camera centre through each pixel centre (x, y) = (j + 0.5, i + 0.5),
+bent by the camera's lens model where it has one (generator/geometry/lens.py), and stops at the first triangle of the scene's geometry (open3d / Embree, on the same
 rigid parts as the Simulator's visibility and collisions). The conventions are those of
 ``Simulator.render()`` (docs/conventions.md):
 
@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..passes import RenderOutput
-from .camera import pixel_rays, rows_times
+from .camera import rows_times
+from .lens import PINHOLE, Lens
 from .raycast import SceneGeometry
 
 
@@ -54,7 +55,8 @@ class RayCamera:
     ``width`` x ``height`` pixels and the clip range ``[clip_start, clip_end]`` (planar
     metres). The camera-frame rays are computed once."""
 
-    def __init__(self, K: np.ndarray, width: int, height: int, clip_start: float = 0.0, clip_end: float = np.inf):
+    def __init__(self, K: np.ndarray, width: int, height: int, clip_start: float = 0.0, clip_end: float = np.inf,
+                 lens: Lens = PINHOLE):
         K = np.asarray(K, dtype=np.float64)
         if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
             raise ValueError(f"K must be a finite 3x3 pinhole matrix with positive focal lengths, got {K.tolist()}")
@@ -64,12 +66,15 @@ class RayCamera:
             raise ValueError(f"clip range must satisfy 0 <= clip_start < clip_end, got {clip_start}, {clip_end}")
         self.K, self.width, self.height = K.copy(), int(width), int(height)
         self.clip_start, self.clip_end = float(clip_start), float(clip_end)
-        self._rays = np.ascontiguousarray(pixel_rays(K, self.width, self.height).reshape(-1, 3))  # camera z = 1
+        lens.check(K, self.width, self.height)
+        self.lens = lens
+        self._rays = np.ascontiguousarray(lens.rays(K, self.width, self.height).reshape(-1, 3))  # camera z = 1
 
-    def matches(self, K: np.ndarray, width: int, height: int, clip_start: float, clip_end: float) -> bool:
-        """True if this camera was built for these intrinsics, size and clip range."""
-        return (int(width), int(height), float(clip_start), float(clip_end)) == (
-            self.width, self.height, self.clip_start, self.clip_end) and np.array_equal(K, self.K)
+    def matches(self, K: np.ndarray, width: int, height: int, clip_start: float, clip_end: float,
+                lens: Lens = PINHOLE) -> bool:
+        """True if this camera was built for these intrinsics, size, clip range and lens."""
+        return (int(width), int(height), float(clip_start), float(clip_end), lens) == (
+            self.width, self.height, self.clip_start, self.clip_end, self.lens) and np.array_equal(K, self.K)
 
     def cast(self, geometry: SceneGeometry, world_from_camera: np.ndarray, normals: bool = True) -> PixelHits:
         """First hits of every pixel-centre ray from the pose ``world_from_camera`` (4x4)."""

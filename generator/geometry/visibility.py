@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .camera import world_to_camera
+from .lens import PINHOLE, Lens
 from .point_blocks import PointBlocks
 from .raycast import SceneGeometry
 from .visibility_rules import (
@@ -50,6 +52,7 @@ def visible_points(
     limits: ViewLimits = ViewLimits(),
     stats: VisibilityStats | None = None,
     ray_per_point: bool = False,
+    lens: Lens = PINHOLE,
 ) -> np.ndarray:
     """Visibility mask (N,) of world points (N, 3) from a camera pose.
 
@@ -60,8 +63,17 @@ def visible_points(
     ``geometry`` for this pair of arrays) and rules 1-3 are decided per group wherever the
     group's box and normal cone settle them (:meth:`.point_blocks.PointBlocks.visible`).
     With ``ray_per_point`` (or without ``part_index``) every point is tested and gets its own
-    ray (the same answer: the plain reference).
+    ray (the same answer: the plain reference). With a ``lens`` (generator/geometry/lens.py),
+    rule 1 asks whether the point projects into the image through it.
     """
+    if not lens.ideal:  # rule 1 through a pinhole holding the lens's view, then exactly through the lens
+        cover, cover_w, cover_h = lens.covering_pinhole(K, width, height)
+        visible = visible_points(geometry, points, normals, part_index, world_from_camera, cover, cover_w, cover_h,
+                                 limits, stats, ray_per_point)
+        rows = np.flatnonzero(visible)
+        uv, _ = lens.project(K, world_to_camera(np.asarray(points)[rows], world_from_camera))
+        visible[rows[~((uv[:, 0] >= 0) & (uv[:, 0] < width) & (uv[:, 1] >= 0) & (uv[:, 1] < height))]] = False
+        return visible
     points = np.asarray(points)
     n = len(points)
     r, centre = world_from_camera[:3, :3], world_from_camera[:3, 3]
