@@ -191,6 +191,7 @@ class Sequence:
         self.tracks = _checked(TrackReader, folder / "tracks.h5")  # the one reader of tracks.h5 (exporters/tracks.py)
         t = self.tracks
         self.K, self.width, self.height, self.poses, self.timestamps = t.K, t.width, t.height, t.poses, t.timestamps
+        self.lens = t.lens  # the cameras' lens model (generator/geometry/lens.py; the ideal pinhole by default)
         self._frames = _checked(FrameReader, folder)
         if (self._frames.width, self._frames.height) != (self.width, self.height):
             raise DatasetError(f"{folder / 'frames.json'}: frames of {self._frames.width}x{self._frames.height} "

@@ -183,7 +183,7 @@ class ClipDataset(TaskDataset):
         visible = np.zeros((self.length, len(ids)), bool)
         for k, t in enumerate(times):
             xyz[k] = seq.point_positions(t, ids)
-            xy[k], depth[k] = project(xyz[k], seq.poses[t], seq.K)
+            xy[k], depth[k] = project(xyz[k], seq.poses[t], seq.K, seq.lens)
             visible[k] = np.isin(ids, seq.visible_tracks(t)["ids"])
         sample = {"frames": [dict(f.outputs) | {"K": f.K, "pose": f.pose, "timestamp": f.timestamp} for f in frames],
                   "tracks": {"ids": ids, "xy": xy, "visible": visible, "depth": depth, "xyz": xyz},

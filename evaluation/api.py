@@ -245,9 +245,7 @@ def score_coverage(gt: str | Path, trajectory: str | Path | Poses, frames: str =
                        "poses_outside_the_animation": clamped,
                        "animation_frames": [int(scene.frames[0]), int(scene.frames[-1])],
                        "near": scene.near, "far": scene.far, "far_units": "metres, planar depth",
-                       "camera": {"K": (scene.K if poses.K is None else poses.K).tolist(),
-                                  "width": scene.width if poses.width is None else poses.width,
-                                  "height": scene.height if poses.height is None else poses.height}},
+                       "camera": _camera_report(scene, poses)},
         "num_poses": len(curve), "num_points": int(len(observed)),
         "coverage": curve.tolist(), "auc": coverage_auc(curve), "final_coverage": float(curve[-1]),
         "observable": ({"available": False, "note": NO_OBSERVABLE_MASK} if curve_obs is None else
@@ -283,3 +281,12 @@ def score_tracks(gt: str | Path, pred: str | Path | dict, mode: str = "first", r
                                              "image_size": list(size), "resize_to": list(resize_to) if resize_to else None,
                                              "units": "pixels (x, y); thresholds strict"},
             "metrics": metrics, "versions": versions()}
+
+
+def _camera_report(scene, poses) -> dict:
+    """The camera a coverage score used: K, size and (when it distorts) the lens."""
+    lens = scene.lens if poses.lens is None else poses.lens
+    return ({"K": (scene.K if poses.K is None else poses.K).tolist(),
+             "width": scene.width if poses.width is None else poses.width,
+             "height": scene.height if poses.height is None else poses.height}
+            | ({} if lens.ideal else {"lens": lens.as_dict()}))

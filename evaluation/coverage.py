@@ -24,7 +24,8 @@ from .inputs import InputError, check_poses, check_timestamps, regular_file
 @dataclass
 class Poses:
     """``world_from_camera`` (T, 4, 4) OpenCV poses; ``frames`` (T,) animation frame of each
-    pose (None: the first frame); camera ``K``/``width``/``height`` (None: the generator's)."""
+    pose (None: the first frame); camera ``K``/``width``/``height``/``lens`` (None: the
+    generator's)."""
 
     world_from_camera: np.ndarray
     frames: np.ndarray | None = None
@@ -32,6 +33,7 @@ class Poses:
     width: int | None = None
     height: int | None = None
     source: str = ""
+    lens: object = None
 
     def __post_init__(self):
         """Refuse poses, frames or a camera that would score silently wrong (InputError)."""
@@ -76,15 +78,17 @@ class CoverageScorer:
         self._frame = frame
 
     def visible(self, world_from_camera: np.ndarray, K: np.ndarray, width: int, height: int,
-                frame: int | None = None) -> np.ndarray:
-        """(N,) bool: surface points visible from one pose at ``frame`` (default: the first)."""
+                frame: int | None = None, lens=None) -> np.ndarray:
+        """(N,) bool: surface points visible from one pose at ``frame`` (default: the first),
+        through ``lens`` (default: the ground truth's camera's)."""
         from generator.geometry.visibility import ViewLimits, visible_points
 
         self.set_frame(int(self.scene.frames[0]) if frame is None else int(frame))
         pts = self.points
         return visible_points(self.geometry, pts.world, pts.world_normals, pts.part,
                               np.asarray(world_from_camera, np.float64), np.asarray(K, np.float64), int(width),
-                              int(height), ViewLimits(self.scene.near, self.scene.far))
+                              int(height), ViewLimits(self.scene.near, self.scene.far),
+                              lens=self.scene.lens if lens is None else lens)
 
     @property
     def observable(self) -> np.ndarray | None:
@@ -103,6 +107,7 @@ class CoverageScorer:
         K = self.scene.K if poses.K is None else poses.K
         w = self.scene.width if poses.width is None else poses.width
         h = self.scene.height if poses.height is None else poses.height
+        lens = self.scene.lens if poses.lens is None else poses.lens
         observed = np.zeros(len(self.points), bool)
         obs = self.observable
         out = np.empty(len(poses.world_from_camera))
@@ -111,7 +116,7 @@ class CoverageScorer:
         it = range(len(out)) if progress is None else progress(range(len(out)))
         for t in it:
             frame = None if poses.frames is None else int(poses.frames[t])
-            observed |= self.visible(poses.world_from_camera[t], K, w, h, frame)
+            observed |= self.visible(poses.world_from_camera[t], K, w, h, frame, lens)
             out[t] = observed.mean() if len(observed) else 0.0
             if out_obs is not None:
                 out_obs[t] = np.count_nonzero(observed & obs) / n_obs if n_obs else 0.0
@@ -153,4 +158,4 @@ def _read_colmap(folder: Path, frames: str) -> Poses:
         model = read_colmap_model(folder)
     except ColmapError as exc:
         raise InputError(str(exc)) from None
-    return Poses(model.world_from_camera, None, model.K, model.width, model.height, str(folder))
+    return Poses(model.world_from_camera, None, model.K, model.width, model.height, str(folder), model.lens)

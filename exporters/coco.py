@@ -13,7 +13,9 @@ read back by :class:`CocoReader`; pycocotools opens the file as it is. Schema (d
   ``category_id``, ``instance_id`` (the ``instance`` map's id, index into the object table),
   ``object`` (its name) and ``amodal_bbox`` [x, y, w, h]: the box of the whole object's
   triangles projected into the image, clipped to the part beyond the camera's clip start
-  and inside the image, ignoring occlusion (``generator.geometry.boxes.amodal_box``; float pixels).
+  and inside the image, ignoring occlusion (``generator.geometry.boxes.amodal_box``; float pixels;
+  not written for a camera with a distorting lens, ``--camera-model``: the box's exact
+  construction needs straight edges).
 - ``info``: ``format_version``, ``conventions``.
 """
 
@@ -105,13 +107,15 @@ class CocoWriter:
             m = matrices[iid]
             if iid not in self.used:
                 self.used[iid] = used_vertices(part.faces)
-            amodal = amodal_box(rows_times(part.vertices, m[:3, :3].T) + m[:3, 3], part.faces, frame.world_from_camera, ctx.K,
-                                ctx.width, ctx.height, self.used[iid], near=self.near)
-            self.annotations.append({
+            annotation = {
                 "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),
                 "segmentation": rle, "area": int(counts[k]), "bbox": _xywh(tight[k].tolist()), "iscrowd": 0,
-                "instance_id": int(iid), "object": row["object"],
-                "amodal_bbox": _xywh(amodal if amodal is not None else tight[k].tolist())})
+                "instance_id": int(iid), "object": row["object"]}
+            if ctx.lens.ideal:  # the exact box assumes straight edges: not written through a distorting lens
+                amodal = amodal_box(rows_times(part.vertices, m[:3, :3].T) + m[:3, 3], part.faces,
+                                    frame.world_from_camera, ctx.K, ctx.width, ctx.height, self.used[iid], near=self.near)
+                annotation["amodal_bbox"] = _xywh(amodal if amodal is not None else tight[k].tolist())
+            self.annotations.append(annotation)
 
     def close(self) -> Path | None:
         ctx = self.context
@@ -158,13 +162,14 @@ class CocoReader:
     def frame(self, frame: int) -> dict:
         """Frame ``frame``'s instances as arrays (n = instances with pixels): ``instance_id``,
         ``label`` (our label id), ``category_id``, ``area`` (n,) ints; ``bbox`` and
-        ``amodal_bbox`` (n, 4) float64 as (x0, y0, x1, y1) pixel edges; ``masks`` is not
+        ``amodal_bbox`` (n, 4) float64 as (x0, y0, x1, y1) pixel edges (NaN where the file has none:
+        a distorting lens); ``masks`` is not
         included: instance k's mask is ``frame.instance == instance_id[k]`` (the RLE decodes
         to exactly that; :meth:`masks` decodes them)."""
         anns = self.annotations(frame)
 
         def xyxy(key):
-            b = np.array([a[key] for a in anns], np.float64).reshape(-1, 4)
+            b = np.array([a[key] if key == "bbox" or key in a else [np.nan] * 4 for a in anns], np.float64).reshape(-1, 4)
             return np.column_stack([b[:, :2], b[:, :2] + b[:, 2:]])
 
         try:

@@ -23,6 +23,7 @@ import numpy as np
 
 from generator.cli_args import Option
 from generator.geometry.camera import invert_rigid, project
+from generator.geometry.lens import PINHOLE, Lens
 
 from . import FORMAT_VERSION
 from .frames import frame_names
@@ -36,15 +37,17 @@ UNCOLOURED = (128, 128, 128)  # COLMAP point colour when no rgb is written
 
 def write_colmap_model(folder: str | Path, K: np.ndarray, width: int, height: int, poses: np.ndarray,
                        image_names: list[str], observations: list[tuple[np.ndarray, np.ndarray]],
-                       points: np.ndarray, colors: np.ndarray, text: bool = False) -> pycolmap.Reconstruction:
+                       points: np.ndarray, colors: np.ndarray, text: bool = False,
+                       lens: Lens = PINHOLE) -> pycolmap.Reconstruction:
     """Write ``folder`` (binary cameras.bin, images.bin, points3D.bin, rig and frame files;
     plus .txt with ``text``). ``observations[t]`` = (point indices (n,), pixel xy (n, 2)) of
-    frame t; ``points`` (N, 3) world metres; ``colors`` (N, 3) uint8."""
+    frame t; ``points`` (N, 3) world metres; ``colors`` (N, 3) uint8; the camera's model is
+    that of ``lens`` (PINHOLE, OPENCV, FULL_OPENCV or OPENCV_FISHEYE: Lens.colmap_camera)."""
     import pycolmap  # here, not at the top: the scan of exporters/ imports this module into every run's driver
 
     rec = pycolmap.Reconstruction()
-    camera = pycolmap.Camera(model="PINHOLE", width=int(width), height=int(height),
-                             params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]], camera_id=1)
+    model, params = lens.colmap_camera(K)
+    camera = pycolmap.Camera(model=model, width=int(width), height=int(height), params=params, camera_id=1)
     rec.add_camera_with_trivial_rig(camera)
     tracks: dict[int, list] = {}
     for t, ((idx, uv), pose, name) in enumerate(zip(observations, poses, image_names)):
@@ -87,7 +90,7 @@ class ColmapSink:
     def add_frame(self, frame: FrameRecord) -> None:
         c = self.context
         seen = np.flatnonzero(frame.visible & self.static)
-        uv, _ = project(frame.points[seen], frame.world_from_camera, c.K)
+        uv, _ = project(frame.points[seen], frame.world_from_camera, c.K, c.lens)
         self.observations.append((seen, uv))
         if "rgb" in frame.outputs:
             new = ~self.coloured[seen]
@@ -102,7 +105,8 @@ class ColmapSink:
         folder = Path(c.folder)
         names = [frame_names(i)[1] for i in range(len(self.observations))]
         write_colmap_model(folder / "sparse" / "0", c.K, c.width, c.height, c.poses[:len(names)], names,
-                           self.observations, self.points, self.colors, text=bool(c.options.get("colmap_text")))
+                           self.observations, self.points, self.colors, text=bool(c.options.get("colmap_text")),
+                           lens=c.lens)
         counts = np.bincount(np.concatenate([o[0] for o in self.observations]) if self.observations else
                              np.zeros(0, int), minlength=len(self.colors))
         keep = np.flatnonzero(counts >= 2)
@@ -127,18 +131,21 @@ class ColmapError(ValueError):
 
 @dataclass
 class ColmapModel:
-    """A single-camera pinhole model: ``K`` (3, 3), ``width``, ``height`` pixels, and per image
-    (in name order) ``names`` and ``world_from_camera`` (T, 4, 4) OpenCV poses."""
+    """A single-camera model: ``K`` (3, 3), ``width``, ``height`` pixels, and per image (in
+    name order) ``names`` and ``world_from_camera`` (T, 4, 4) OpenCV poses; ``lens`` the
+    camera's distortion (generator/geometry/lens.py; PINHOLE for a pinhole camera)."""
 
     K: np.ndarray
     width: int
     height: int
     names: list[str]
     world_from_camera: np.ndarray
+    lens: Lens = PINHOLE
 
 
 def read_colmap_model(folder: str | Path) -> ColmapModel:
-    """Read a COLMAP sparse model (binary, else text) with one PINHOLE or SIMPLE_PINHOLE camera,
+    """Read a COLMAP sparse model (binary, else text) with one PINHOLE, SIMPLE_PINHOLE, OPENCV,
+    FULL_OPENCV (k4-k6 zero) or OPENCV_FISHEYE camera,
     refusing what would give silently wrong poses: truncated binary files (their byte counts
     are checked before pycolmap reads them), zero or non-finite intrinsics, a principal point
     outside the image, rotations that are not proper (det +1) or not finite."""
@@ -165,7 +172,7 @@ def read_colmap_model(folder: str | Path) -> ColmapModel:
     if len(cams) != 1:
         raise ColmapError(f"{folder}: {len(cams)} cameras; one camera is needed")
     cam = rec.cameras[cams.pop()]
-    K, width, height = _pinhole(cam, folder)
+    K, width, height, lens = _camera(cam, folder)
     poses = np.empty((len(images), 4, 4))
     for k, im in enumerate(images):
         m = np.eye(4)
@@ -174,18 +181,14 @@ def read_colmap_model(folder: str | Path) -> ColmapModel:
         if not np.isfinite(m).all() or abs(np.linalg.det(r) - 1) > 1e-6 or np.abs(r.T @ r - np.eye(3)).max() > 1e-6:
             raise ColmapError(f"{folder}: image {im.name!r} has no proper rotation (unit quaternion); re-export the model")
         poses[k] = invert_rigid(m)  # world_from_camera, BLAS-free
-    return ColmapModel(K, width, height, [im.name for im in images], poses)
+    return ColmapModel(K, width, height, [im.name for im in images], poses, lens)
 
 
-def _pinhole(cam, folder: Path) -> tuple[np.ndarray, int, int]:
-    params, model = [float(v) for v in cam.params], cam.model.name
-    if model == "PINHOLE" and len(params) == 4:
-        fx, fy, cx, cy = params
-    elif model == "SIMPLE_PINHOLE" and len(params) == 3:
-        fx, cx, cy = params
-        fy = fx
-    else:
-        raise ColmapError(f"{folder}: camera model {model}; PINHOLE or SIMPLE_PINHOLE is needed (undistort first)")
+def _camera(cam, folder: Path) -> tuple[np.ndarray, int, int, Lens]:
+    try:
+        (fx, fy, cx, cy), lens = Lens.from_colmap(cam.model.name, cam.params)
+    except ValueError as exc:
+        raise ColmapError(f"{folder}: {exc}") from None
     width, height = int(cam.width), int(cam.height)
     if not (0 < width <= 65536 and 0 < height <= 65536):
         raise ColmapError(f"{folder}: camera size {width}x{height} pixels; the model is damaged, re-export it")
@@ -195,7 +198,7 @@ def _pinhole(cam, folder: Path) -> tuple[np.ndarray, int, int]:
     if not (0 < cx < width and 0 < cy < height):
         raise ColmapError(f"{folder}: principal point ({cx:g}, {cy:g}) lies outside the {width}x{height} image; "
                           "the model is damaged, re-export it")
-    return np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]), width, height
+    return np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]), width, height, lens
 
 
 def _check_binary_size(path: Path) -> None:

@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from generator.geometry.lens import PINHOLE, Lens
+
 from .exr import read_frame_exr, write_frame
 from .hdf5 import REMEDY, DamagedFileError, access_error
 from .jsonfile import read_checked_bytes
@@ -103,6 +105,10 @@ class FramesSink:
         self.compression = compression
         self.attributes = {"buildee/labels": json.dumps(list(context.labels))}
         self.frames, self.size = 0, (int(context.width), int(context.height))
+        self.camera = {"K": np.asarray(context.K, np.float64).tolist(), "lens": context.lens.as_dict(),
+                       "meaning": "K in pixels (OpenCV); the lens maps normalised camera coordinates to the "
+                                  "distorted ones K applies to, with OpenCV's definitions (docs/cameras.md); "
+                                  "every modality is of the pixel centres through it"}
         # planar metres; an infinite limit is written as null (JSON has no infinity)
         self.clip = tuple(float(c) if np.isfinite(c) else None for c in context.clip)
         # the Simulator's settings that decide how depth, labels and ids were made (frames.json;
@@ -123,6 +129,7 @@ class FramesSink:
     def close(self) -> None:
         doc = {"format": "frames-1", "frames": self.frames, "width": self.size[0], "height": self.size[1],
                "pixels": "pixel (row i, col j) has its centre at (x, y) = (j + 0.5, i + 0.5)",
+               "camera": self.camera,
                "clip": {"near": self.clip[0], "far": self.clip[1],
                         "meaning": "planar depth limits in metres of the camera: no surface outside them is seen "
                                    "(depth, labels, ids, normals, flow, tracks)"},
@@ -160,6 +167,9 @@ class FrameReader:
             doc = json.loads(read_checked_bytes(path))
             self.modalities: tuple[str, ...] = tuple(doc["modalities"])
             self.frames, self.width, self.height = int(doc["frames"]), int(doc["width"]), int(doc["height"])
+            camera = doc.get("camera")  # written since #41
+            self.K = None if camera is None else np.asarray(camera["K"], np.float64)
+            self.lens = PINHOLE if camera is None else Lens.from_dict(camera["lens"])
         except FileNotFoundError:
             raise DamagedFileError(f"{path}: missing; {REMEDY}") from None
         except DamagedFileError:

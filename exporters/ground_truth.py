@@ -26,6 +26,7 @@ import h5py
 import numpy as np
 
 from generator.geometry.camera import apply_affine, turn_normals
+from generator.geometry.lens import PINHOLE, Lens
 from generator.geometry.parts import MeshPart
 from generator.geometry.sampling import ground_height, outward_normals, sample_part
 from generator.geometry.seeding import stream
@@ -65,7 +66,8 @@ def sample_scoring_points(parts: list[MeshPart], label_ids: dict[str, int], dens
 def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[str], surface: dict,
                        frames: np.ndarray, matrices: np.ndarray, fps: float, K: np.ndarray, width: int, height: int,
                        near: float, far: float, points_density: float, seed: int,
-                       scoring_density: float = DEFAULT_SCORING_DENSITY, *, viewpoints: np.ndarray) -> Path:
+                       scoring_density: float = DEFAULT_SCORING_DENSITY, *, viewpoints: np.ndarray,
+                       lens: Lens = PINHOLE) -> Path:
     """Write points.ply, mesh.ply and scene.h5 into ``folder``.
 
     ``parts`` as the Simulator holds them (``Simulator.scene_parts()``, matrices of the first
@@ -73,7 +75,8 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     ``observable_points_mask``); ``viewpoints`` (K, 3) the observability viewpoints that mask
     used (the scoring cloud's mask uses them too); ``frames`` (F,) animation frame
     numbers and ``matrices`` (F, D, 4, 4) world_from_object of the D dynamic parts (in part
-    order) at those frames; ``near``/``far`` the visibility depth limits (planar, metres).
+    order) at those frames; ``near``/``far`` the visibility depth limits (planar, metres);
+    ``lens`` the camera's lens model (stored when it distorts).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -91,7 +94,7 @@ def write_ground_truth(folder: str | Path, parts: list[MeshPart], labels: list[s
     observable = _write_points_ply(folder, placed, label_ids, colors, comments, scoring_density, seed, viewpoints)
     _write_mesh_ply(folder, placed, label_ids, colors, comments)
     _write_scene_h5(folder, parts, labels, label_ids, surface, frames, dyn, matrices, fps, K, width, height, near,
-                    far, points_density, seed, scoring_density, viewpoints, observable)
+                    far, points_density, seed, scoring_density, viewpoints, observable, lens)
     return folder
 
 
@@ -137,7 +140,7 @@ def _write_mesh_ply(folder: Path, placed: list[MeshPart], label_ids: dict, color
 def _write_scene_h5(folder: Path, parts: list[MeshPart], labels: list[str], label_ids: dict, surface: dict,
                     frames: np.ndarray, dyn: list[int], matrices: np.ndarray, fps: float, K: np.ndarray, width: int,
                     height: int, near: float, far: float, points_density: float, seed: int, scoring_density: float,
-                    viewpoints: np.ndarray, observable: np.ndarray) -> None:
+                    viewpoints: np.ndarray, observable: np.ndarray, lens: Lens = PINHOLE) -> None:
     """scene.h5: the parts, their animation, the surface points, observability and camera."""
     with create_file(folder / "scene.h5") as f:  # checksummed (exporters/hdf5.py): damage fails to read
         f.attrs.update({"format_version": FORMAT_VERSION, "labels": text_attribute(json.dumps(labels)), "fps": float(fps),
@@ -180,6 +183,8 @@ def _write_scene_h5(folder: Path, parts: list[MeshPart], labels: list[str], labe
         cam = f.create_group("camera")
         dataset(cam, "K", np.asarray(K, np.float64))
         cam.attrs.update({"width": int(width), "height": int(height), "near": float(near), "far": float(far)})
+        if not lens.ideal:  # generator/geometry/lens.py Lens.as_dict; absent: the ideal pinhole
+            cam.attrs["lens"] = text_attribute(json.dumps(lens.as_dict()))
 
 
 def write_simulator_ground_truth(sim, folder: str | Path, seed: int,
@@ -199,7 +204,17 @@ def write_simulator_ground_truth(sim, folder: str | Path, seed: int,
     return write_ground_truth(folder, sim.scene_parts(), sim.labels, surface, frames, np.stack(matrices),
                               sim.fps, sim.K, sim.width, sim.height, sim.clip_start,
                               min(sim.clip_end, sim.max_pcl_depth), sim.points_density, seed, scoring_density,
-                              viewpoints=default_viewpoints(sim.spawn_points))
+                              viewpoints=default_viewpoints(sim.spawn_points), lens=sim.lens)
+
+
+def _lens(attrs, folder: Path) -> Lens:
+    """scene.h5's camera lens (the ideal pinhole where none is stored)."""
+    if "lens" not in attrs:
+        return PINHOLE
+    try:
+        return Lens.from_dict(json.loads(attrs["lens"]))
+    except (ValueError, TypeError) as exc:
+        raise GroundTruthError(f"{folder / 'scene.h5'}: camera lens: {exc}; regenerate the seed") from None
 
 
 def _with_matrix(part: MeshPart, matrix: np.ndarray) -> MeshPart:
@@ -265,7 +280,8 @@ class GroundTruthScene:
     numbers; ``matrices`` (F, D, 4, 4) of the dynamic parts ``dynamic_parts`` (D,);
     ``surface``: local, local_normals, part, label and (when stored) observable; ``viewpoints``
     (K, 3) of the observability mask (None in files without one); camera ``K``, ``width``, ``height`` and
-    visibility limits ``near``, ``far`` (metres); ``fps``; ``labels``.
+    visibility limits ``near``, ``far`` (metres); ``fps``; ``labels``; ``lens`` the camera's lens
+    model (generator/geometry/lens.py).
     """
 
     folder: Path
@@ -283,6 +299,7 @@ class GroundTruthScene:
     fps: float
     seed: int
     viewpoints: np.ndarray | None = None
+    lens: Lens = PINHOLE
 
     def frame_index(self, frame: int) -> int:
         """Row of ``matrices`` for an animation frame (frames outside the range clamp to its ends)."""
@@ -333,7 +350,8 @@ def read_ground_truth(folder: str | Path) -> GroundTruthScene:
             viewpoints = f["observability/viewpoints"][()] if "observability" in f else None
             return GroundTruthScene(folder, labels, parts, frames, dyn, mats, surface, cam["K"][()],
                                     int(cam.attrs["width"]), int(cam.attrs["height"]), float(cam.attrs["near"]),
-                                    float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]), viewpoints)
+                                    float(cam.attrs["far"]), float(f.attrs["fps"]), int(f.attrs["seed"]), viewpoints,
+                                    _lens(cam.attrs, folder))
     except GroundTruthError:
         raise
     except H5_ERRORS as exc:  # a failed checksum, or damaged metadata wherever h5py looks

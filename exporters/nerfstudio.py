@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from generator.geometry.lens import PINHOLE, Lens
+
 from .frames import checked_png_bytes
 from .jsonfile import read_checked_bytes
 from .sinks import FrameRecord, TrajectoryContext, register_sink
@@ -116,8 +118,9 @@ def instant_ngp_box(poses: np.ndarray, bounds: np.ndarray | None) -> dict:
 def write_transforms(path: str | Path, K: np.ndarray, width: int, height: int, poses: np.ndarray,
                      image_names: list[str], depth_names: list[str] | None = None,
                      timestamps: np.ndarray | None = None, depth_unit: float = DEPTH_UNITS[0],
-                     bounds: np.ndarray | None = None, ply_file: str | None = None) -> Path:
-    """Write transforms.json for frames with ``poses`` (T, 4, 4) OpenCV world_from_camera."""
+                     bounds: np.ndarray | None = None, ply_file: str | None = None, lens: Lens = PINHOLE) -> Path:
+    """Write transforms.json for frames with ``poses`` (T, 4, 4) OpenCV world_from_camera, seen
+    through ``lens`` (its camera model and coefficients in nerfstudio's fields)."""
     frames = []
     for t, (pose, name) in enumerate(zip(poses, image_names)):
         frame = {"file_path": name, "transform_matrix": opengl_from_opencv(pose).tolist()}
@@ -128,6 +131,8 @@ def write_transforms(path: str | Path, K: np.ndarray, width: int, height: int, p
         frames.append(frame)
     doc = {"camera_model": "OPENCV", "fl_x": float(K[0, 0]), "fl_y": float(K[1, 1]), "cx": float(K[0, 2]),
            "cy": float(K[1, 2]), "w": int(width), "h": int(height), "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0}
+    if not lens.ideal:
+        doc |= lens.nerfstudio_fields()
     if depth_names is not None:
         doc |= {"depth_unit_scale_factor": depth_unit, "integer_depth_scale": depth_unit}
     doc |= instant_ngp_box(poses, bounds)
@@ -162,4 +167,4 @@ class NerfstudioSink:
         write_transforms(self.folder / TRANSFORMS, c.K, c.width, c.height, c.poses,
                          [f"rgb_{i:06d}.png" for i in range(T)],
                          [depth_png_name(i) for i in range(T)] if self.depth else None, c.timestamps,
-                         self.unit or DEPTH_UNITS[0], c.scene_bounds, POINTS_PLY)
+                         self.unit or DEPTH_UNITS[0], c.scene_bounds, POINTS_PLY, c.lens)

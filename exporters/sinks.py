@@ -18,6 +18,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from generator.cli_args import Option
+from generator.geometry.lens import PINHOLE, Lens
 from generator.registry import Registry, RegistryError, origin
 
 
@@ -26,7 +27,8 @@ class TrajectoryContext:
     """Everything constant over one trajectory.
 
     folder: the trajectory's output folder (``seed_N/<kind>``); kind: trajectory kind.
-    K (3, 3), width, height: the pinhole camera (OpenCV convention, pixels).
+    K (3, 3), width, height: the camera (OpenCV convention, pixels); lens: its lens model
+    (generator/geometry/lens.py; the ideal pinhole unless ``--camera-model`` says otherwise).
     poses (T, 4, 4): world_from_camera of every frame (OpenCV axes), known up front.
     timestamps (T,): seconds from the first frame.
     labels: class names (label id = index); instances: rows ``{"id", "object", "label",
@@ -63,6 +65,7 @@ class TrajectoryContext:
     object_matrices: np.ndarray | None = None
     clip: tuple[float, float] = (0.0, float("inf"))
     scene_bounds: np.ndarray | None = None
+    lens: Lens = PINHOLE
 
 
 @dataclass

@@ -4,7 +4,8 @@ Layout (all lengths in metres, pixels as (x, y) with the top-left pixel's centre
 (0.5, 0.5), poses OpenCV world_from_camera); every dataset states its unit in its ``units``
 attribute (:data:`UNITS`), the root attributes restate the conventions.
 
-  /cameras    width, height (attrs); K (3, 3); world_from_camera (T, 4, 4); timestamps (T,) s
+  /cameras    width, height (attrs); lens (attr, JSON, only for a distorting lens: Lens.as_dict);
+              K (3, 3); world_from_camera (T, 4, 4); timestamps (T,) s
   /points     local (N, 3) float64: world coordinates for static points, object frame for
               dynamic ones; label (N,) int32; instance (N,) int32; dynamic_object (N,) int32
               (index into /objects, -1 = static)
@@ -37,6 +38,7 @@ import h5py
 import numpy as np
 
 from generator.geometry.camera import apply_affine, project
+from generator.geometry.lens import PINHOLE, Lens
 
 from . import FORMAT_VERSION, VERSION_REMEDY
 from .hdf5 import (CHECKSUM, H5_ERRORS, DamagedFileError, access_error, attribute, create_file, damaged, dataset, group,
@@ -48,7 +50,8 @@ _CHUNK = 1 << 16
 # the ``units`` attribute of every dataset (and of the cameras group, for its width/height)
 UNITS = {
     "cameras": "width, height: pixels",
-    "cameras/K": "pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], OpenCV pinhole, top-left pixel centre (0.5, 0.5)",
+    "cameras/K": "pixels: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], OpenCV, top-left pixel centre (0.5, 0.5); "
+                 "distortion: the cameras group's lens attribute (none: a pinhole)",
     "cameras/world_from_camera": "4x4 rigid, translation in metres; OpenCV camera axes (x right, y down, z forward)",
     "cameras/timestamps": "seconds from the first frame",
     "points/local": "metres; world frame for static points, object frame for dynamic points",
@@ -90,17 +93,19 @@ class TrackWriter:
     TAP-Vid query subset."""
 
     def __init__(self, path: str | Path, table: dict, dynamic_names: list[str], labels: list[str],
-                 K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0):
+                 K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0, lens: Lens = PINHOLE):
         self.path = Path(path)
         self.f = create_file(self.path)  # checksummed: a flipped byte fails on read (exporters/hdf5.py)
         self.table, self.queries, self.seed = table, queries, seed
-        self.K, self.width, self.height = np.asarray(K, float), int(width), int(height)
+        self.K, self.width, self.height, self.lens = np.asarray(K, float), int(width), int(height), lens
         f = self.f
         f.attrs.update({"format_version": FORMAT_VERSION, "labels": text_attribute(json.dumps(labels)),
                         "conventions": "metres; OpenCV camera (x right, y down, z forward); poses world_from_camera; "
                                        "pixels (x, y), top-left pixel centre (0.5, 0.5); depth = planar z"})
         cams = f.create_group("cameras")
         cams.attrs.update({"width": self.width, "height": self.height})
+        if not lens.ideal:  # generator/geometry/lens.py Lens.as_dict; absent: the ideal pinhole
+            cams.attrs["lens"] = text_attribute(json.dumps(lens.as_dict()))
         dataset(cams, "K", self.K)
         cams.create_dataset("world_from_camera", (0, 4, 4), maxshape=(None, 4, 4), dtype="f8", chunks=(64, 4, 4), **CHECKSUM)
         cams.create_dataset("timestamps", (0,), maxshape=(None,), dtype="f8", chunks=(1024,), **CHECKSUM)
@@ -133,7 +138,7 @@ class TrackWriter:
         _append(f["cameras/world_from_camera"], world_from_camera[None])
         _append(f["cameras/timestamps"], [timestamp])
         idx = np.flatnonzero(visible).astype(np.int32)
-        xy, z = project(world_points[idx], world_from_camera, self.K)
+        xy, z = project(world_points[idx], world_from_camera, self.K, self.lens)
         _append(f["visibility/index"], idx)
         _append(f["visibility/xy"], xy.astype(np.float32))
         _append(f["visibility/depth"], z.astype(np.float32))
@@ -156,7 +161,7 @@ class TrackWriter:
         tracks, occluded, tracks_3d = np.zeros((len(ids), T, 2)), np.ones((len(ids), T), bool), np.zeros((len(ids), T, 3))
         for t in range(T):
             pos = world_positions(data, t, ids)
-            tracks[:, t], _ = project(pos, data["world_from_camera"][t], data["K"])
+            tracks[:, t], _ = project(pos, data["world_from_camera"][t], data["K"], self.lens)
             tracks_3d[:, t] = pos
             vis_t = data["index"][data["offsets"][t]:data["offsets"][t + 1]]
             occluded[:, t] = ~np.isin(ids, vis_t)
@@ -180,7 +185,7 @@ class TracksSink:
 
     def __init__(self, c: TrajectoryContext):
         self.writer = TrackWriter(Path(c.folder) / "tracks.h5", c.point_table, c.dynamic_objects, c.labels, c.K,
-                                  c.width, c.height, seed=c.seed)
+                                  c.width, c.height, seed=c.seed, lens=c.lens)
 
     def add_frame(self, frame: FrameRecord) -> None:
         self.writer.add_frame(frame.timestamp, frame.world_from_camera, frame.points, frame.visible,
@@ -310,6 +315,12 @@ class TrackReader:
         cams = group(f, "cameras", self.path)
         self.width, self.height = (int(attribute(cams, k, self.path)) for k in ("width", "height"))
         self.K, self.poses = read(f, "cameras/K"), read(f, "cameras/world_from_camera")
+        self.lens = PINHOLE
+        if "lens" in cams.attrs:
+            try:
+                self.lens = Lens.from_dict(json.loads(text(attribute(cams, "lens"))))
+            except (ValueError, TypeError) as exc:
+                raise damaged(self.path, f"attribute cameras/lens: {exc}") from None
         self.timestamps, self.offsets = read(f, "cameras/timestamps"), read(f, "visibility/offsets")
         try:
             self.labels = json.loads(text(attribute(f, "labels")))

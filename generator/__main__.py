@@ -17,8 +17,9 @@ from trajectories import TRAJECTORY_KINDS
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, RunConfig
 from .batch.executors import add_executor_arguments, executor_arguments_problem
 from .checks import MAX_SEED
-from .cli_args import (OneLineParser, check_out_folder, first_repeated, int_at_least, out_folder, positive_float,
-                       resolution)
+from .cli_args import (OneLineParser, check_out_folder, coefficients, first_repeated, int_at_least, out_folder,
+                       positive_float, resolution)
+from .geometry.lens import MODELS as LENS_MODELS
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
 from .scene.site import PRESETS as SCENE_PRESETS
@@ -119,6 +120,12 @@ def parse_args(argv=None) -> argparse.Namespace:
                         f"{MAX_SCORING_POINTS // 10**6} million points in all (default: {DEFAULTS.scoring_density:g})")
     for option in export_options():  # each export's own options (--colmap-text), declared beside its sink
         option.add_to(p)
+    p.add_argument("--camera-model", choices=list(LENS_MODELS), default=DEFAULTS.camera_model,
+                   help="the cameras' lens model: pinhole, opencv (radial-tangential) or fisheye (equidistant), "
+                        "with OpenCV's definitions (default: pinhole; docs/cameras.md)")
+    p.add_argument("--distortion", type=coefficients, default=DEFAULTS.distortion,
+                   help="the lens's coefficients, comma-separated: k1,k2,p1,p2[,k3] for opencv, k1,k2,k3,k4 for "
+                        "fisheye (default: all zero)")
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
@@ -142,7 +149,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                             tuple(args.trajectories or DEFAULTS.trajectories), args.points_density,
                             DEFAULTS.max_depth, args.scoring_density, device=args.device, outputs=outputs,
                             phases=args.phases, weather=args.weather, ground=args.ground,
-                            building_type=args.building_type, context=args.context, season=args.season, exports={o.dest: getattr(args, o.dest) for o in export_options()})
+                            building_type=args.building_type, context=args.context, season=args.season,
+                            camera_model=args.camera_model, distortion=args.distortion,
+                            exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
     except ValueError as exc:

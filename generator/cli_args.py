@@ -102,6 +102,17 @@ def positive_float(what: str = "a positive number", zero: bool = False, at_least
     return parse
 
 
+def coefficients(text: str) -> tuple[float, ...]:
+    """An argparse type: comma-separated finite numbers (a lens's distortion coefficients)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = (math.nan,)
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected comma-separated finite numbers such as -0.1,0.02,0,0, got {text!r}")
+    return tuple(v + 0.0 for v in values)
+
+
 def resolution(text: str) -> tuple[int, int]:
     """WxH in pixels, each side as render_settings.check_side allows."""
     try:

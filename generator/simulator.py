@@ -333,9 +333,7 @@ class Simulator(CameraMoves, LidarScans, Lenses, PaperAPI):
         if p is None or p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"points must be an (N, 3) array of world coordinates in metres, got "
                              f"{'shape ' + str(p.shape) if p is not None else repr(points)[:60]}")
-        if not self.lens.ideal:
-            return self.lens.project(self.K, cam_model.world_to_camera(p, self._world_from_camera))
-        return cam_model.project(p, self._world_from_camera, self.K)
+        return cam_model.project(p, self._world_from_camera, self.K, self.lens)
 
     # ---- camera --------------------------------------------------------------------------
     def get_world_from_camera(self) -> np.ndarray:

@@ -85,7 +85,8 @@ def _point_index(rec, point3d_id: int, pts: np.ndarray) -> int:
 
 def test_reader_knows_every_camera_model_of_colmap(tmp_path):
     """A binary model may hold cameras of any of COLMAP's models: an unused one is ignored,
-    and the images' own camera must be a pinhole (refused as a model, not as a damaged file)."""
+    and the images' own camera must be a pinhole or one of the lens models (others are refused as
+    a model, not as a damaged file)."""
     import pytest
 
     from exporters.colmap import ColmapError, read_colmap_model
@@ -107,6 +108,7 @@ def test_reader_knows_every_camera_model_of_colmap(tmp_path):
         np.testing.assert_allclose(read_colmap_model(extra).K, K)
         if model.name in ("PINHOLE", "SIMPLE_PINHOLE"):
             continue
+        lenses = {"OPENCV": "opencv", "FULL_OPENCV": "opencv", "OPENCV_FISHEYE": "fisheye"}
         used = tmp_path / f"used{model_id}"  # the images' camera is of this model
         used.mkdir()
         lines = (base / "cameras.txt").read_text().splitlines()
@@ -118,5 +120,9 @@ def test_reader_knows_every_camera_model_of_colmap(tmp_path):
         for name in ("cameras.txt", "images.txt", "points3D.txt"):
             (used / name).unlink()
         rec.write_binary(str(used))
-        with pytest.raises(ColmapError, match=f"camera model {model.name}; PINHOLE or SIMPLE_PINHOLE is needed"):
+        if model.name in lenses:  # a lens model the project writes and reads (tests/test_lens.py)
+            assert read_colmap_model(used).lens.model == lenses[model.name]
+            continue
+        with pytest.raises(ColmapError, match=f"camera model {model.name} with {len(camera.params)} parameters; "
+                                              "PINHOLE, SIMPLE_PINHOLE, OPENCV, FULL_OPENCV"):
             read_colmap_model(used)

@@ -75,7 +75,7 @@ def test_a_lens_that_folds_inside_the_image_is_refused_in_one_line():
 @pytest.mark.parametrize("model,text,words", [
     ("opencv", "0.1,0.2", "a opencv lens takes 5 (k1, k2, p1, p2, k3) coefficients, got 2"),
     ("fisheye", "0.1,0.2,0.3,0.4,0.5", "takes 4 (k1, k2, k3, k4)"),
-    ("pinhole", "0.1", "takes none coefficients"),
+    ("pinhole", "0.1", "a pinhole lens takes no coefficients, got 1"),
     ("kannala", None, "lens model 'kannala' is unknown: use one of pinhole, opencv, fisheye"),
     ("opencv", "0.1,x,0,0", "give comma-separated numbers"),
     ("opencv", "0.1,nan,0,0", "must be finite"),

@@ -7,6 +7,8 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 
 from ..checks import check_integer, check_number
+from ..geometry.camera import site_intrinsics
+from ..geometry.lens import MODELS, Lens
 from ..render_settings import check_side
 from ..scene.building_types import check_building_type
 from ..scene.contexts import check_context
@@ -22,7 +24,8 @@ MAX_SURFACE_POINTS = 5_000_000  # simulator points, tracked and projected every 
 MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may get from the densities
 
 
-IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None}  # config keys a manifest leaves out when they hold these values
+IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None,
+                  "camera_model": "pinhole", "distortion": []}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,12 @@ class RunConfig:
     building_type: str | None = None  # every building's type (generator/scene/building_types/); None: drawn per building
     context: str | None = None  # every seed's context (generator/scene/contexts.py); None: drawn per seed
     season: str | None = None  # every seed's season (generator/scene/weather.py); None: drawn per seed
+    camera_model: str = "pinhole"  # the cameras' lens model (generator/geometry/lens.py): pinhole, opencv, fisheye
+    distortion: tuple[float, ...] = ()  # its coefficients, OpenCV's order (opencv: k1 k2 p1 p2 k3; fisheye: k1-k4)
+
+    def lens(self) -> Lens:
+        """The cameras' lens model (ValueError in one line for a model or coefficients it cannot be)."""
+        return Lens(self.camera_model, self.distortion or (0.0,) * len(MODELS.get(self.camera_model, ())))
 
     def site_overrides(self) -> dict:
         """The site parameters this run sets for every seed (given to build_site)."""
@@ -73,6 +82,8 @@ class RunConfig:
         check_building_type(self.building_type)
         check_context(self.context)
         check_season(self.season)
+        lens = self.lens()
+        lens.check(site_intrinsics(w, h).K, w, h)  # one-to-one over the image of the sites' camera
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
             raise ValueError("--phases needs the outputs depth and instance (the change masks are made from them); "
                              "add them to --outputs")
@@ -105,6 +116,7 @@ class RunConfig:
         d = asdict(self)
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
+        d["distortion"] = list(self.distortion)
         d |= export_values(d.pop("exports"))
         for key, value in IMPLIED_CONFIG.items():  # a one-stage run's config reads as before timelines existed
             if d[key] == value:

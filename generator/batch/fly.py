@@ -70,7 +70,7 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         options=export_values(exports or {}) | {"plan": plan, "ground_truth": sim.ground_truth,
                                                 "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
-        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects))
+        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens)
     sinks = [factory(context) for factory in load_sinks().values()]
     sim.reset_observations()
     coverage, tracks = [], 0

@@ -46,6 +46,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
                     render_preset=cfg.render_preset)
     check_point_budget(cfg, sim.num_points)  # before any rendering
     sim.configure_render(resolution=cfg.resolution, device=cfg.device)
+    sim.set_lens(cfg.camera_model, cfg.lens().coefficients)
     start = sim.respawn_camera()
     # every trajectory planned before the first frame is rendered: one that cannot be planned
     # (too many frames for the site: docs/trajectories.md) fails the seed in seconds

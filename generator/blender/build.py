@@ -9,6 +9,7 @@ import bpy
 import numpy as np
 from bpy_extras import anim_utils
 
+from ..geometry.camera import SITE_LENS_MM, SITE_SENSOR_MM
 from ..geometry.portable_math import atan2, hypot, sincos
 from ..scene.assets import Asset
 from ..scene.kinds import kind as kind_named
@@ -161,7 +162,7 @@ def build_in_blender(plan: SitePlan, resolution: tuple[int, int] = (640, 480)) -
         spawn.hide_render = True
         spawn.display_type = "WIRE"
         cam_data = bpy.data.cameras.new("Camera")
-        cam_data.lens, cam_data.sensor_width, cam_data.clip_start, cam_data.clip_end = 20.0, 36.0, 0.1, 2000.0
+        cam_data.lens, cam_data.sensor_width, cam_data.clip_start, cam_data.clip_end = SITE_LENS_MM, SITE_SENSOR_MM, 0.1, 2000.0
         cam = bpy.data.objects.new("Camera", cam_data)
         scene.collection.objects.link(cam)
         eye, target = (np.array(v, dtype=float) for v in plan.camera)

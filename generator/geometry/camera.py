@@ -94,6 +94,14 @@ def intrinsics_from_blender(
     return Intrinsics(int(width), int(height), K)
 
 
+SITE_LENS_MM, SITE_SENSOR_MM = 20.0, 36.0  # the generated sites' camera (generator/blender/build.py)
+
+
+def site_intrinsics(width: int, height: int) -> Intrinsics:
+    """K of the generated sites' camera for a ``width`` x ``height`` render."""
+    return intrinsics_from_blender(width, height, SITE_LENS_MM, SITE_SENSOR_MM, SITE_SENSOR_MM, "AUTO")
+
+
 def orthonormalize(rotation: np.ndarray) -> np.ndarray:
     """Closest rotation matrix (polar decomposition) to a 3x3 matrix; removes scale. For a
     rotation times a well-conditioned scale (every matrix of a Blender object without a
@@ -240,12 +248,16 @@ def world_to_camera(points_world: np.ndarray, world_from_camera: np.ndarray) -> 
     return rows_times(np.asarray(points_world) - t, r)  # BLAS-free: the same bits on every CPU
 
 
-def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray):
-    """Project world points: returns pixel coordinates (N, 2) as (x, y) and planar depth z (N,).
+def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarray, lens=None):
+    """Project world points: returns pixel coordinates (N, 2) as (x, y) and planar depth z (N,),
+    through ``lens`` (generator/geometry/lens.py) where it distorts.
 
-    Points behind the camera get z <= 0 and meaningless pixel coordinates.
+    Points behind the camera get z <= 0 and meaningless pixel coordinates (NaN through a
+    distorting lens).
     """
     pc = world_to_camera(points_world, world_from_camera)
+    if lens is not None and not lens.ideal:
+        return lens.project(K, pc)
     z = pc[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         u = K[0, 0] * pc[:, 0] / z + K[0, 1] * pc[:, 1] / z + K[0, 2]

@@ -34,11 +34,11 @@ import numpy as np
 
 from . import portable_math
 
-# model -> (coefficient names, COLMAP camera model)
+# model -> its coefficients' names, in OpenCV's order
 MODELS = {
-    "pinhole": ((), "PINHOLE"),
-    "opencv": (("k1", "k2", "p1", "p2", "k3"), "FULL_OPENCV"),
-    "fisheye": (("k1", "k2", "k3", "k4"), "OPENCV_FISHEYE"),
+    "pinhole": (),
+    "opencv": ("k1", "k2", "p1", "p2", "k3"),
+    "fisheye": ("k1", "k2", "k3", "k4"),
 }
 NEWTON_STEPS = 30  # Newton's iterations of the inverse (it converges in under 10 on usable lenses)
 INVERSE_TOL = 1e-12  # the largest residual |distort(undistort(p)) - p| accepted (normalised units)
@@ -56,13 +56,16 @@ class Lens:
     def __post_init__(self):
         if self.model not in MODELS:
             raise ValueError(f"lens model {self.model!r} is unknown: use one of {', '.join(MODELS)}")
-        names = MODELS[self.model][0]
+        names = MODELS[self.model]
         values = tuple(float(c) for c in self.coefficients)
         if self.model == "opencv" and len(values) == 4:
             values = values + (0.0,)  # k3 = 0, as OpenCV's four-coefficient form
         if len(values) != len(names):
-            wanted = f"{len(names)} ({', '.join(names)})" if names else "none"
-            raise ValueError(f"a {self.model} lens takes {wanted} coefficients, got {len(self.coefficients)}")
+            if not names:
+                raise ValueError(f"a pinhole lens takes no coefficients, got {len(self.coefficients)}: give a "
+                                 "lens model (opencv or fisheye) with them")
+            raise ValueError(f"a {self.model} lens takes {len(names)} ({', '.join(names)}) coefficients, "
+                             f"got {len(self.coefficients)}")
         if not all(np.isfinite(values)):
             raise ValueError(f"lens coefficients must be finite numbers, got {list(self.coefficients)}")
         object.__setattr__(self, "coefficients", values)
@@ -73,13 +76,59 @@ class Lens:
         without coefficients is still the equidistant projection)."""
         return self.model == "pinhole" or (self.model == "opencv" and not any(self.coefficients))
 
-    @property
-    def colmap_model(self) -> str:
-        return MODELS[self.model][1]
-
     def as_dict(self) -> dict:
-        """The lens as written to frames.json and site files: its model and named coefficients."""
-        return {"model": self.model} | dict(zip(MODELS[self.model][0], self.coefficients))
+        """The lens as files write it (frames.json, tracks.h5, ground_truth.h5): its model and
+        named coefficients, ``{"model": "opencv", "k1": ..., "k2": ..., "p1": ..., "p2": ..., "k3": ...}``."""
+        return {"model": self.model} | dict(zip(MODELS[self.model], self.coefficients))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Lens":
+        """The reader of :meth:`as_dict` (ValueError in one line for anything else)."""
+        if not isinstance(d, dict) or d.get("model") not in MODELS:
+            raise ValueError(f"a lens must be a dict with a model in {', '.join(MODELS)}, got {str(d)[:80]}")
+        names = MODELS[d["model"]]
+        if set(d) != {"model", *names}:
+            raise ValueError(f"a {d['model']} lens has the keys model, {', '.join(names) or '(no coefficients)'}; "
+                             f"got {', '.join(sorted(d))}")
+        return cls(d["model"], tuple(d[n] for n in names))
+
+    def colmap_camera(self, K: np.ndarray) -> tuple[str, list[float]]:
+        """COLMAP's camera model and parameters for this lens and ``K`` (no skew): PINHOLE,
+        OPENCV (k3 = 0) or FULL_OPENCV (k4..k6 = 0), OPENCV_FISHEYE."""
+        fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+        if self.model == "fisheye":
+            return "OPENCV_FISHEYE", [fx, fy, cx, cy, *self.coefficients]
+        if self.model == "opencv" and any(self.coefficients):
+            k1, k2, p1, p2, k3 = self.coefficients
+            if k3 == 0.0:
+                return "OPENCV", [fx, fy, cx, cy, k1, k2, p1, p2]
+            return "FULL_OPENCV", [fx, fy, cx, cy, k1, k2, p1, p2, k3, 0.0, 0.0, 0.0]
+        return "PINHOLE", [fx, fy, cx, cy]
+
+    @classmethod
+    def from_colmap(cls, model: str, params) -> tuple[tuple[float, float, float, float], "Lens"]:
+        """((fx, fy, cx, cy), lens) of a COLMAP camera; ValueError for a model no lens here
+        matches (FULL_OPENCV with k4..k6 != 0, the other models)."""
+        p = [float(v) for v in params]
+        counts = {"SIMPLE_PINHOLE": 3, "PINHOLE": 4, "OPENCV": 8, "FULL_OPENCV": 12, "OPENCV_FISHEYE": 8}
+        if counts.get(model) != len(p):
+            raise ValueError(f"camera model {model} with {len(p)} parameters; PINHOLE, SIMPLE_PINHOLE, OPENCV, "
+                             "FULL_OPENCV (k4-k6 zero) or OPENCV_FISHEYE is needed")
+        if model == "SIMPLE_PINHOLE":
+            return (p[0], p[0], p[1], p[2]), PINHOLE
+        if model == "FULL_OPENCV" and any(p[9:]):
+            raise ValueError("camera model FULL_OPENCV with k4-k6 (the rational model); only k1, k2, p1, p2, k3 are "
+                             "supported: undistort first")
+        lens = {"PINHOLE": PINHOLE, "OPENCV": cls("opencv", tuple(p[4:8])), "FULL_OPENCV": cls("opencv", tuple(p[4:9])),
+                "OPENCV_FISHEYE": cls("fisheye", tuple(p[4:8]))}[model]
+        return tuple(p[:4]), lens
+
+    def nerfstudio_fields(self) -> dict:
+        """transforms.json's camera model and distortion fields (nerfstudio's names)."""
+        if self.model == "fisheye":
+            return {"camera_model": "OPENCV_FISHEYE"} | dict(zip(("k1", "k2", "k3", "k4"), self.coefficients))
+        k1, k2, p1, p2, k3 = self.coefficients if self.model == "opencv" else (0.0,) * 5
+        return {"camera_model": "OPENCV", "k1": k1, "k2": k2, "k3": k3, "k4": 0.0, "p1": p1, "p2": p2}
 
     # ---- the forward map --------------------------------------------------------------
     def distort(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -237,7 +286,7 @@ PINHOLE = Lens()
 def parse_lens(model: str, text: str | None) -> Lens:
     """The lens of ``--camera-model MODEL --distortion k1,k2,...`` (ValueError in one line)."""
     if not text:
-        coefficients: tuple = () if model == "pinhole" else (0.0,) * len(MODELS.get(model, ((),))[0])
+        coefficients: tuple = (0.0,) * len(MODELS.get(model, ()))
     else:
         try:
             coefficients = tuple(float(v) for v in text.split(","))
