@@ -59,6 +59,9 @@ def test_colmap_holds_the_opencv_camera_and_reprojects_its_points(seed):
                 uv = cam.img_from_cam(image.cam_from_world() * xyz)
                 errors.append(np.linalg.norm(uv - p2.xy))
     assert len(errors) > 100 and max(errors) < 1e-6
+    from exporters.colmap import read_colmap_model
+
+    assert read_colmap_model(seed / "orbit" / "sparse" / "0").lens.coefficients[:4] == DISTORTION  # our reader too
 
 
 @pytest.mark.pipeline

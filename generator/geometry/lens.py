@@ -119,9 +119,10 @@ class Lens:
         if model == "FULL_OPENCV" and any(p[9:]):
             raise ValueError("camera model FULL_OPENCV with k4-k6 (the rational model); only k1, k2, p1, p2, k3 are "
                              "supported: undistort first")
-        lens = {"PINHOLE": PINHOLE, "OPENCV": cls("opencv", tuple(p[4:8])), "FULL_OPENCV": cls("opencv", tuple(p[4:9])),
-                "OPENCV_FISHEYE": cls("fisheye", tuple(p[4:8]))}[model]
-        return tuple(p[:4]), lens
+        if model == "PINHOLE":
+            return tuple(p), PINHOLE
+        named, end = {"OPENCV": ("opencv", 8), "FULL_OPENCV": ("opencv", 9), "OPENCV_FISHEYE": ("fisheye", 8)}[model]
+        return tuple(p[:4]), cls(named, tuple(p[4:end]))
 
     def nerfstudio_fields(self) -> dict:
         """transforms.json's camera model and distortion fields (nerfstudio's names)."""
