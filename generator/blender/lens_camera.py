@@ -6,7 +6,7 @@ coordinates in [0, 1], x right, y up, jittered within the pixel by the pixel fil
 its perspective camera). The shader turns the position into OpenCV pixel coordinates
 (u, v) = (x W, (1 - y) H), then into distorted normalised coordinates with ``K``, inverts
 the lens there (:class:`generator.geometry.lens.Lens`: the same Newton iteration, in OSL's
-float32) and returns the direction (a, -b, 1) normalised (Blender's camera frame: x right,
+float32, stopped once converged) and returns the direction (a, -b, 1) normalised (Blender's camera frame: x right,
 y up, looking down -z, which the shader's frame maps to +z). The colour is then rendered
 through the lens itself: no warp of a pinhole image, no resampling. The ground truth is cast
 through the same lens in float64 at the pixel centres (generator/geometry/raycam.py); the
@@ -29,6 +29,9 @@ import numpy as np
 from ..geometry.lens import NEWTON_STEPS, Lens
 
 TEXT_NAME = "buildee_lens.osl"
+# the shader's Newton iteration stops once a step is this small (normalised units): converging
+# quadratically, it is then at float32's precision (4 to 6 steps for the lenses of docs/cameras.md)
+OSL_CONVERGED = 1e-6
 
 
 def _osl_modules() -> None:
@@ -56,7 +59,7 @@ def osl_source(lens: Lens, K: np.ndarray, width: int, height: int) -> str:
                 f"    for (int i = 0; i < {NEWTON_STEPS}; i++) {{\n        float t2 = th * th;\n"
                 f"        float g = th * (1.0 + t2 * ({k1} + t2 * ({k2} + t2 * ({k3} + t2 * {k4})))) - rd;\n"
                 f"        float s = 1.0 + t2 * (3.0 * {k1} + t2 * (5.0 * {k2} + t2 * (7.0 * {k3} + t2 * 9.0 * {k4})));\n"
-                f"        th = th - g / s;\n    }}\n"
+                f"        th = th - g / s;\n        if (abs(g / s) < {OSL_CONVERGED}) break;\n    }}\n"
                 f"    float ca = 0.0;\n    float cb = 0.0;\n"
                 f"    if (rd > 0.0) {{ ca = sin(th) * ad / rd; cb = sin(th) * bd / rd; }}\n"
                 f"    direction = normalize(vector(ca, -cb, cos(th)));\n")
@@ -72,8 +75,9 @@ def osl_source(lens: Lens, K: np.ndarray, width: int, height: int) -> str:
                 f"        float jaa = rad + 2.0 * a * a * slope + 2.0 * {p1} * b + 6.0 * {p2} * a;\n"
                 f"        float jbb = rad + 2.0 * b * b * slope + 6.0 * {p1} * b + 2.0 * {p2} * a;\n"
                 f"        float det = jaa * jbb - cr * cr;\n"
-                f"        float na = a - (jbb * fa - cr * fb) / det;\n"
-                f"        b = b - (jaa * fb - cr * fa) / det;\n        a = na;\n    }}\n"
+                f"        float da = (jbb * fa - cr * fb) / det;\n"
+                f"        float db = (jaa * fb - cr * fa) / det;\n        a = a - da;\n        b = b - db;\n"
+                f"        if (abs(da) + abs(db) < {OSL_CONVERGED}) break;\n    }}\n"
                 f"    direction = normalize(vector(a, -b, 1.0));\n")
     return ("shader buildee_lens(output point position = 0, output vector direction = 0,\n"
             "                    output color throughput = 1) {\n"
