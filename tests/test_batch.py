@@ -290,13 +290,13 @@ def test_a_worker_whose_runner_died_during_its_start_up_exits_before_working(tmp
 
 @pytest.mark.pipeline
 def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(tmp_path):
-    """A 4 km fly-through (10,000 frames, the most a run may ask for) fits nowhere on small
+    """A 2 km fly-through (5,000 frames; 1.4 km already fits nowhere) fits nowhere on small
     seed 3 (docs/trajectories.md): the seed fails with the planner's one-line error before
     the orbit, planned and flown first, renders anything (it used to render all the orbit's
     frames, then fail)."""
-    r = run(tmp_path, "--seeds", "3", "--frames", "10000", "--resolution", "8x6", "--outputs", "rgb", timeout=300)
+    r = run(tmp_path, "--seeds", "3", "--frames", "5000", "--resolution", "8x6", "--outputs", "rgb", timeout=300)
     assert r.returncode == 1
-    assert "seed 3: FAILED" in r.stdout and "TrajectoryError: no collision-free fly-through of 4000 m" in r.stdout
+    assert "seed 3: FAILED" in r.stdout and "TrajectoryError: no collision-free fly-through of 2000 m" in r.stdout
     partial = tmp_path / ".seed_000003.partial"
     assert "TrajectoryError" in (partial / "error.log").read_text()
     assert (partial / "scene" / "site.blend").is_file()  # the site was built...
