@@ -1,11 +1,19 @@
 """Lens models against OpenCV's own (cv2.projectPoints, cv2.fisheye), and the rays through the
 pixel centres against the projection (generator/geometry/lens.py)."""
 
+import argparse
+
 import cv2
 import numpy as np
 import pytest
 
-from generator.geometry.lens import Lens, parse_lens
+from generator.cli_args import coefficients
+from generator.geometry.lens import Lens, lens_of
+
+
+def parse_lens(model, text):
+    """What ``--camera-model MODEL --distortion TEXT`` gives (generator/cli_args.py parses the text)."""
+    return lens_of(model, coefficients(text) if text else ())
 
 K = np.array([[300.0, 0.0, 161.3], [0.0, 310.0, 118.7], [0.0, 0.0, 1.0]])
 W, H = 320, 240
@@ -77,11 +85,11 @@ def test_a_lens_that_folds_inside_the_image_is_refused_in_one_line():
     ("fisheye", "0.1,0.2,0.3,0.4,0.5", "takes 4 (k1, k2, k3, k4)"),
     ("pinhole", "0.1", "a pinhole lens takes no coefficients, got 1"),
     ("kannala", None, "lens model 'kannala' is unknown: use one of pinhole, opencv, fisheye"),
-    ("opencv", "0.1,x,0,0", "give comma-separated numbers"),
-    ("opencv", "0.1,nan,0,0", "must be finite"),
+    ("opencv", "0.1,x,0,0", "expected comma-separated finite numbers"),
+    ("opencv", "0.1,nan,0,0", "expected comma-separated finite numbers"),
 ])
 def test_bad_lenses_are_refused_in_one_line(model, text, words):
-    with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises((ValueError, argparse.ArgumentTypeError), match=words.replace("(", r"\(").replace(")", r"\)")):
         parse_lens(model, text)
 
 

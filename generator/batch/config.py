@@ -8,7 +8,7 @@ import numpy as np
 
 from ..checks import check_integer, check_number
 from ..geometry.camera import site_intrinsics
-from ..geometry.lens import MODELS, Lens
+from ..geometry.lens import Lens, lens_of
 from ..render_settings import check_side
 from ..scene.building_types import check_building_type
 from ..scene.contexts import check_context
@@ -61,7 +61,7 @@ class RunConfig:
 
     def lens(self) -> Lens:
         """The cameras' lens model (ValueError in one line for a model or coefficients it cannot be)."""
-        return Lens(self.camera_model, self.distortion or (0.0,) * len(MODELS.get(self.camera_model, ())))
+        return lens_of(self.camera_model, self.distortion)
 
     def site_overrides(self) -> dict:
         """The site parameters this run sets for every seed (given to build_site)."""

@@ -284,13 +284,7 @@ class Lens:
 PINHOLE = Lens()
 
 
-def parse_lens(model: str, text: str | None) -> Lens:
-    """The lens of ``--camera-model MODEL --distortion k1,k2,...`` (ValueError in one line)."""
-    if not text:
-        coefficients: tuple = (0.0,) * len(MODELS.get(model, ()))
-    else:
-        try:
-            coefficients = tuple(float(v) for v in text.split(","))
-        except ValueError:
-            raise ValueError(f"--distortion {text!r}: give comma-separated numbers, e.g. -0.1,0.02,0,0") from None
-    return Lens(model, coefficients)
+def lens_of(model: str, coefficients=()) -> Lens:
+    """The lens ``model`` with ``coefficients`` (none given: all zero), as ``--camera-model`` and
+    ``--distortion`` make it (ValueError in one line)."""
+    return Lens(model, tuple(coefficients) or (0.0,) * len(MODELS.get(model, ())))
