@@ -191,6 +191,22 @@ def test_glass_returns_nothing_and_what_lies_behind_is_dimmed_by_its_transmissio
                        / np.linalg.norm(scan.xyz[beside].astype(np.float64), axis=1), atol=1e-6)
 
 
+def test_a_pane_flush_on_a_wall_is_crossed_and_the_wall_behind_it_stops_the_beam():
+    """A window as the neighbours' buildings have them: a 6 cm glass box whose back face lies
+    on a solid block's wall. Beams through it return from the wall (never from inside the
+    block), dimmed by both of the pane's faces."""
+    sensor = replace(lidar("vlp16"), range_noise_sigma_m=0.0)
+    block = box("block", "Building", (10, -20, -5), (30, 20, 5), face_reflectivity=np.full(12, 0.5, np.float32))
+    pane = box("pane", "Building", (9.94, -3, -3), (10, 3, 3), face_transparent=np.ones(12, bool))
+    scan = scanner([block, pane])[0].sweep(sensor, 0, 0.0, still(at(0, 0, 0))).scan
+    behind = (np.abs(scan.xyz[:, 1]) < 2.5) & (np.abs(scan.xyz[:, 2]) < 2.0)  # through the pane
+    assert behind.sum() > 20 and np.allclose(scan.xyz[behind, 0], 10.0, atol=1e-4)  # on the wall, not at x = 30
+    d = scan.xyz[behind].astype(np.float64)
+    cos = np.abs(d[:, 0]) / np.linalg.norm(d, axis=1)
+    assert np.allclose(scan.intensity[behind], 0.5 * cos * physics.GLASS_TRANSMISSION ** 4, atol=1e-6)
+    assert not np.any(scan.xyz[:, 0] > 10.0 + 1e-4)
+
+
 def test_a_truck_driving_past_is_seen_where_it_was_when_each_beam_met_it():
     """A 10 m/s truck 8 m from a spinning sensor that itself drives at 5 m/s: a return at
     time t lies on the truck at its pose at t (within the stated motion bound); the de-skewed

@@ -234,6 +234,7 @@ def test_kernels_have_no_fused_multiply_add():
     from generator.geometry.observability import visible_from
     from generator.geometry.point_block_kernels import omni_rays
     from generator.lidar import kernels as lidar_kernels
+    from generator.lidar import physics
 
     sim_points = np.random.default_rng(0).uniform(-5, 5, (500, 3))
     ground = MeshPart("Ground", "Ground", np.array([[-50, -50, -6], [50, -50, -6], [50, 50, -6], [-50, 50, -6.0]]),
@@ -253,13 +254,14 @@ def test_kernels_have_no_fused_multiply_add():
     near_distance.point_triangle_sq(0.5, 0.5, 0.5, np.eye(3))
     index, ones = np.zeros(2, np.int64), np.ones((2, 3))
     lidar_kernels.posed_rays(ones, index, np.ones((1, 4, 4)), np.empty((2, 3)), np.empty((2, 3)))  # a sweep's
-    lidar_kernels.incidence(index, ones.astype(np.float32), ones, np.empty(2))
+    physics.returns(index, index, index, np.ones(1), ones.astype(np.float32), ones, index, np.ones(2), np.ones(2),
+                    np.ones(5), np.empty(2, np.int64), np.empty(2), np.empty(2), np.empty(2, np.float32))
     lidar_kernels.return_points(index, ones, ones, ones, np.ones(2), np.ones(2), np.eye(4), np.empty((2, 3)),
                                 *[np.empty((2, 3), np.float32)] * 3)
     for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays,
                    exact_kernels.rows_times, exact_kernels.batch_rows_times, exact_kernels.plane_hits,
                    exact_kernels.proposed_hits, near_distance.point_triangle_sq, near_distance.cell_pairs,
-                   lidar_kernels.posed_rays, lidar_kernels.incidence, lidar_kernels.return_points):
+                   lidar_kernels.posed_rays, physics.returns, lidar_kernels.return_points):
         if not kernel.signatures:
             kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))
         # numba shows no code of a function loaded from its disk cache: compile it afresh,

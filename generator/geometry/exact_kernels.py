@@ -159,3 +159,29 @@ def float32_rays(origins: np.ndarray, directions: np.ndarray, rays: np.ndarray) 
         for k in range(3):
             rays[i, k] = origins[i, k]
             rays[i, 3 + k] = directions[i, k]
+
+
+@numba.njit(cache=True, nogil=True)
+def farther_than(t: np.ndarray, directions: np.ndarray, reach: float) -> np.ndarray:
+    """(N,) bool: ray i's hit (``t[i]`` in units of its direction's length; inf: none) lies at
+    least ``reach`` metres from its origin."""
+    out = np.empty(t.shape[0], dtype=np.bool_)
+    r2 = reach * reach
+    for i in range(t.shape[0]):
+        d2 = (directions[i, 0] * directions[i, 0] + directions[i, 1] * directions[i, 1]) + directions[i, 2] * directions[i, 2]
+        out[i] = t[i] * t[i] * d2 >= r2
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def take_rays(rows: np.ndarray, origins: np.ndarray, directions: np.ndarray, rays: np.ndarray):
+    """(origins[rows], directions[rows], rays[rows]) as new arrays, in one pass."""
+    m = rows.shape[0]
+    o, d, r = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 6), dtype=np.float32)
+    for j in range(m):
+        i = rows[j]
+        for k in range(3):
+            o[j, k], d[j, k] = origins[i, k], directions[i, k]
+        for k in range(6):
+            r[j, k] = rays[i, k]
+    return o, d, r

@@ -22,6 +22,10 @@ from .structure import Structure, tensor
 # does not see a change here: after changing them, delete generator/geometry/__pycache__.
 OCCLUSION_TOL_ABS = 1e-3
 OCCLUSION_TOL_REL = 1e-4
+# A cast of this many rays or more asks the moving parts' structure only about the rays whose
+# static hit lies past the moving parts' nearest box (a test that costs more than it saves on
+# a few rays).
+REACH_TEST_RAYS = 256
 def _build(parts: Sequence[MeshPart], first_hits: bool = True) -> Structure | None:
     structure = Structure(parts, first_hits)
     return structure if structure.count else None
@@ -77,11 +81,16 @@ class SceneGeometry:
             self._dynamic_dirty = True
             self.version += 1
 
-    def _scenes(self, closed_only: bool = False):
+    def _dynamic_structure(self) -> Structure | None:
+        """The moving parts' structure at their current matrices (rebuilt when they moved)."""
         if self._dynamic_dirty:
             self._dynamic = _build([self.parts[i] for i in self.dynamic_index])
             self._dynamic_closed, self._dynamic_closed_built = None, False
             self._dynamic_dirty = False
+        return self._dynamic
+
+    def _scenes(self, closed_only: bool = False):
+        self._dynamic_structure()
         if closed_only:
             if not self._dynamic_closed_built:  # built when first asked for: a cast never needs it
                 self._dynamic_closed = _build([self.parts[i] for i in self.dynamic_index if self.parts[i].closed],
@@ -99,16 +108,16 @@ class SceneGeometry:
         """Axis-aligned bounds (P, 2, 3) of every part at the current matrices (a new array)."""
         if self._bounds_version != self.version:
             out = self.local_bounds.copy()
-            for i in self.dynamic_index:
-                lo, hi = self.local_bounds[i]
-                if not np.all(lo <= hi):
-                    continue  # no vertices
-                m = self.parts[i].matrix
+            moving = [i for i in self.dynamic_index if np.all(self.local_bounds[i, 0] <= self.local_bounds[i, 1])]
+            if moving:  # (parts without vertices keep their empty box)
+                lo, hi = self.local_bounds[moving, 0], self.local_bounds[moving, 1]
+                m = np.stack([self.parts[i].matrix for i in moving])
                 # the box of the transformed box: centre moved, half extents through |R|
                 # (R v as rows_times(v, R^T): BLAS-free, the same bits on every CPU)
-                centre = rows_times((lo + hi) / 2, m[:3, :3].T) + m[:3, 3]
-                half = rows_times((hi - lo) / 2, np.abs(m[:3, :3]).T)
-                out[i] = [centre - half, centre + half]
+                rotation_t = np.ascontiguousarray(m[:, :3, :3].transpose(0, 2, 1))
+                centre = rows_times((lo + hi) / 2, rotation_t) + m[:, :3, 3]
+                half = rows_times((hi - lo) / 2, np.abs(rotation_t))
+                out[moving, 0], out[moving, 1] = centre - half, centre + half
             self._bounds, self._bounds_version = out, self.version
         return self._bounds.copy()
 
@@ -180,6 +189,26 @@ class SceneGeometry:
             votes += (count % 2).astype(np.int32)
         return votes >= 2
 
+    def crossings(self, origins: np.ndarray, directions: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        """(N,) int64: how many triangles each ray meets at 0 <= t < ``limit`` (N,) (in units of
+        its direction's length; inf: all), by Embree's float32 distances (every face counted,
+        front or back)."""
+        n = len(origins)
+        count = np.zeros(n, dtype=np.int64)
+        if n == 0:
+            return count
+        from .exact_kernels import float32_rays
+
+        rays = np.empty((n, 6), dtype=np.float32)
+        float32_rays(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
+                     rays)
+        t_rays = tensor(rays)
+        for scene in self._scenes():
+            found = scene.list_intersections(t_rays)
+            ray, t = found["ray_ids"].numpy().astype(np.int64), found["t_hit"].numpy()
+            count += np.bincount(ray[t < limit[ray]], minlength=n)
+        return count
+
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First hit along rays: returns (t (N,) in units of ``directions``' length, inf for a
         miss; part index (N,) int64, -1 for a miss)."""
@@ -198,31 +227,55 @@ class SceneGeometry:
 
     def _first_hits(self, origins: np.ndarray, directions: np.ndarray, normals: bool):
         # each structure decides its own hits in float64 (structure.Structure.first_hits); the
-        # nearer of the static and the dynamic answer wins
-        from .exact_kernels import float32_rays
+        # nearer of the static and the dynamic answer wins. The dynamic structure is asked only
+        # about rays whose static hit lies past the moving parts' nearest box (a nearer static
+        # hit wins whatever the dynamic one would be).
+        from .exact_kernels import farther_than, float32_rays, take_rays
         origins = np.ascontiguousarray(origins, dtype=np.float64)
         directions = np.ascontiguousarray(directions, dtype=np.float64)
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
         float32_rays(origins, directions, rays)
-        best = None
-        self._scenes()
-        for structure, index in ((self._static, self.static_index), (self._dynamic, self.dynamic_index)):
-            if structure is None:
-                continue
-            t, gid, face, unit = structure.first_hits(origins, directions, rays, normals)
-            owner = np.asarray(self._geometry_to_part(index) + [-1], dtype=np.int64)  # gid -1 -> part -1
-            if best is None:
-                best = [t, owner[gid], face, unit]
-                continue
-            rows = np.flatnonzero(t < best[0])
-            best[0][rows], best[1][rows], best[2][rows] = t[rows], owner[gid[rows]], face[rows]
+        t, part = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+        face, unit = np.full(n, -1, dtype=np.int64), (np.zeros((n, 3), dtype=np.float32) if normals else None)
+        rows = np.arange(n)
+        if self._static is not None:
+            t, gid, face, unit = self._static.first_hits(origins, directions, rays, normals)
+            part = self._owner(self.static_index)[gid]
+            if self.dynamic_index and n >= REACH_TEST_RAYS:
+                reach = self._dynamic_reach(origins)
+                if reach > 0:
+                    rows = np.flatnonzero(farther_than(t, directions, reach))
+        dynamic = self._dynamic_structure() if len(rows) else None  # built only when asked
+        if dynamic is not None:
+            sub = (origins, directions, rays) if len(rows) == n else take_rays(rows, origins, directions, rays)
+            t2, gid2, face2, unit2 = dynamic.first_hits(*sub, normals)
+            closer = np.flatnonzero(t2 < t[rows])
+            at = rows[closer]
+            t[at], part[at], face[at] = t2[closer], self._owner(self.dynamic_index)[gid2[closer]], face2[closer]
             if normals:
-                best[3][rows] = unit[rows]
-        if best is None:
-            return (np.full(n, np.inf), np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64),
-                    np.zeros((n, 3), dtype=np.float32) if normals else None)
-        return tuple(best)
+                unit[at] = unit2[closer]
+        return t, part, face, unit
+
+    def _owner(self, index: list[int]) -> np.ndarray:
+        """(G + 1,) the part index of each geometry id of the structure over ``index``, then -1
+        (a miss's id -1 reads the last)."""
+        return np.asarray(self._geometry_to_part(index) + [-1], dtype=np.int64)
+
+    def _dynamic_reach(self, origins: np.ndarray) -> float:
+        """A distance (metres) within which no moving part lies from any of ``origins``: the gap
+        between the origins' box and the nearest moving part's box, less a millimetre and
+        1e-4 of it (the float32 triangles' round-off); 0 when they touch."""
+        bounds = self.world_bounds()[self.dynamic_index]
+        lo = np.array([origins[:, k].min() for k in range(3)])  # by column: numpy's axis-0 reduction of
+        hi = np.array([origins[:, k].max() for k in range(3)])  # (N, 3) is 25 times slower
+        gap = np.maximum(0.0, np.maximum(bounds[:, 0] - hi, lo - bounds[:, 1]))
+        valid = np.all(bounds[:, 0] <= bounds[:, 1], axis=1)  # parts with vertices
+        if not valid.any():
+            return 0.0
+        g = gap[valid]
+        nearest = float(np.sqrt(np.min(g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + g[:, 2] * g[:, 2])))
+        return max(0.0, nearest - 1e-3 - 1e-4 * nearest)
 
     def _geometry_to_part(self, index: list[int]) -> list[int]:
         # geometry ids follow insertion order, skipping parts without faces

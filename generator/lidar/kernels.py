@@ -13,13 +13,13 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def posed_rays(directions: np.ndarray, firing: np.ndarray, poses: np.ndarray, origin: np.ndarray,
                direction: np.ndarray) -> None:
     """Beam i's world ray from the pose ``poses[firing[i]]`` (4x4 world_from_sensor at its firing
     time): origin[i] = that pose's translation, direction[i] = R directions[i], as
     ``rows_times(directions, R^T)`` computes it: (d0 R[k, 0] + d1 R[k, 1]) + d2 R[k, 2]."""
-    for i in range(directions.shape[0]):
+    for i in numba.prange(directions.shape[0]):
         g = firing[i]
         x0, x1, x2 = directions[i, 0], directions[i, 1], directions[i, 2]
         for k in range(3):
@@ -27,16 +27,7 @@ def posed_rays(directions: np.ndarray, firing: np.ndarray, poses: np.ndarray, or
             origin[i, k] = poses[g, k, 3]
 
 
-@numba.njit(cache=True, nogil=True)
-def incidence(rows: np.ndarray, normal: np.ndarray, direction: np.ndarray, out: np.ndarray) -> None:
-    """out[j] = |n . d| of beam rows[j]'s hit normal and direction, as (n0 d0 + n1 d1) + n2 d2."""
-    for j in range(rows.shape[0]):
-        i = rows[j]
-        out[j] = abs((np.float64(normal[i, 0]) * direction[i, 0] + np.float64(normal[i, 1]) * direction[i, 1])
-                     + np.float64(normal[i, 2]) * direction[i, 2])
-
-
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def return_points(rows: np.ndarray, origin: np.ndarray, direction: np.ndarray, sensor_directions: np.ndarray,
                   measured: np.ndarray, exact: np.ndarray, to_sensor: np.ndarray, world: np.ndarray,
                   xyz: np.ndarray, frozen: np.ndarray, surface: np.ndarray) -> None:
@@ -45,7 +36,7 @@ def return_points(rows: np.ndarray, origin: np.ndarray, direction: np.ndarray, s
     frozen[j] and surface[j] (float32): o + m d and o + r d carried by the 4x4 ``to_sensor``
     as ``apply_affine`` computes it, ((p0 R[k, 0] + p1 R[k, 1]) + p2 R[k, 2]) + t[k] (the
     points of static surfaces; moving ones are redone by the caller)."""
-    for j in range(rows.shape[0]):
+    for j in numba.prange(rows.shape[0]):
         i = rows[j]
         m, r = measured[j], exact[j]
         o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ..geometry.portable_math import cos
@@ -38,37 +39,44 @@ GLASS_TRANSMISSION = 0.95  # one way through one face of clear glass at 905 nm (
 MAX_GLASS_FACES = 8  # a beam crosses at most this many glass faces; past them it is lost
 
 
-def transmission(panes: np.ndarray) -> np.ndarray:
-    """tau: the two-way transmission through ``panes`` (N,) glass faces crossed (float64)."""
-    tau = np.ones(len(panes))
-    glazed = np.flatnonzero(panes > 0)
-    for k in range(int(np.max(panes, initial=0))):
-        tau[glazed] = np.where(panes[glazed] > k, tau[glazed] * (GLASS_TRANSMISSION * GLASS_TRANSMISSION), tau[glazed])
-    return tau
+@numba.njit(cache=True, nogil=True)
+def returns(part: np.ndarray, face: np.ndarray, first_face: np.ndarray, reflectivity: np.ndarray,
+            normal: np.ndarray, direction: np.ndarray, panes: np.ndarray, range_m: np.ndarray, draws: np.ndarray,
+            rules: np.ndarray, rows: np.ndarray, measured: np.ndarray, exact: np.ndarray,
+            intensity: np.ndarray) -> int:
+    """The module's rules for every beam i (its hit: ``part[i]`` (-1: none), ``face[i]``,
+    unit ``normal[i]`` (float32), ``range_m[i]``, glass faces crossed ``panes[i]``; its world
+    ``direction[i]``; its standard normal ``draws[i]``): writes the reported returns, in beam
+    order, as rows (their beams), measured and exact ranges (float64) and intensity
+    (float32), and returns their count. ``reflectivity`` is every part's faces' rho, part p's
+    face f at ``first_face[p] + f``; ``rules`` = (sigma, detection threshold on the received
+    power (0.1 / R10^2), cos of the largest incidence angle, minimum range, maximum range).
+    Intensity = (rho |cos theta|) tau clipped to [0, 1], received = intensity / r^2,
+    tau = (GLASS_TRANSMISSION^2)^panes by repeated products, |cos theta| = |(n0 d0 + n1 d1) +
+    n2 d2|: float64, in this order (numba keeps it: tests/test_visibility.py)."""
+    sigma, threshold, cos_limit, range_min, range_max = rules[0], rules[1], rules[2], rules[3], rules[4]
+    two_way = GLASS_TRANSMISSION * GLASS_TRANSMISSION
+    m = 0
+    for i in range(part.shape[0]):
+        p = part[i]
+        if p < 0:
+            continue
+        cos_i = abs((np.float64(normal[i, 0]) * direction[i, 0] + np.float64(normal[i, 1]) * direction[i, 1])
+                    + np.float64(normal[i, 2]) * direction[i, 2])
+        tau = 1.0
+        for _ in range(panes[i]):
+            tau = tau * two_way
+        value = min(max(reflectivity[first_face[p] + face[i]] * cos_i * tau, 0.0), 1.0)
+        r = range_m[i]
+        noisy = r + sigma * draws[i]
+        if value / (r * r) >= threshold and range_min <= noisy <= range_max and cos_i >= cos_limit:
+            rows[m], measured[m], exact[m], intensity[m] = i, noisy, r, np.float32(value)
+            m += 1
+    return m
 
 
-def received(reflectivity: np.ndarray, cos_incidence: np.ndarray, range_m: np.ndarray,
-             transmission: np.ndarray) -> np.ndarray:
-    """rho |cos theta| tau / r^2 (relative received power, float64)."""
-    return intensity(reflectivity, cos_incidence, transmission) / (range_m * range_m)
-
-
-def intensity(reflectivity: np.ndarray, cos_incidence: np.ndarray, transmission: np.ndarray) -> np.ndarray:
-    """rho |cos theta| tau, in [0, 1] (float64)."""
-    return np.clip(np.asarray(reflectivity, np.float64) * np.abs(cos_incidence) * transmission, 0.0, 1.0)
-
-
-def detected(sensor, reflectivity: np.ndarray, cos_incidence: np.ndarray, range_m: np.ndarray,
-             measured_m: np.ndarray, transmission: np.ndarray) -> np.ndarray:
-    """(N,) bool: the sensor reports these returns (the module's detection rules)."""
+def rules(sensor) -> np.ndarray:
+    """The ``rules`` of :func:`returns` for ``sensor`` (float64 (5,))."""
     r10 = float(sensor.range_at_10pct_m)
-    threshold = 0.1 / (r10 * r10)
-    cos_limit = float(cos(math.radians(sensor.max_incidence_deg)))
-    strong = received(reflectivity, cos_incidence, range_m, transmission) >= threshold
-    in_range = (measured_m >= sensor.range_min_m) & (measured_m <= sensor.range_max_m)
-    return strong & in_range & (np.abs(cos_incidence) >= cos_limit)
-
-
-def noisy(range_m: np.ndarray, sigma_m: float, draws: np.ndarray) -> np.ndarray:
-    """The measured ranges: ``range_m`` + sigma ``draws`` (standard normal draws, one per beam)."""
-    return np.asarray(range_m, dtype=np.float64) + sigma_m * draws
+    return np.array([sensor.range_noise_sigma_m, 0.1 / (r10 * r10), float(cos(math.radians(sensor.max_incidence_deg))),
+                     sensor.range_min_m, sensor.range_max_m], dtype=np.float64)

@@ -19,12 +19,13 @@ body whose pose over time is a :class:`generator.lidar.motion.MotionTrack`:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..geometry.camera import affine_inverse, apply_affine, matmul_exact, rows_times
 from ..geometry.raycast import SceneGeometry
+from ..geometry.structure import near_edge_tol
 from ..geometry.seeding import stream
 from . import kernels, physics
 from .motion import MotionTrack
@@ -32,7 +33,6 @@ from .returns import Scan
 from .sensors import body_from_sensor, emission
 
 MAX_SLICES = 256
-PASS_THROUGH_M = 1e-4  # a beam that passed a pane goes on from this far beyond it
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,7 @@ class Scanner:
         self.transparent = np.concatenate([np.zeros(0, bool)] + [
             _face_values(p.face_transparent, len(p.faces), False, bool) for p in geometry.parts])
         self.radius = {i: _radius(geometry.parts[i]) for i in geometry.dynamic_index}
+        self._glass_split = None
 
     @classmethod
     def of_parts(cls, parts, label_of_part, seed: int) -> "Scanner":
@@ -123,7 +124,7 @@ class Scanner:
                 rows = np.flatnonzero(which == k)
                 if len(rows):
                     self.geometry.set_matrices(placed[k])
-                    hits.put(rows, self._cast(origin[rows], direction[rows]))
+                    hits.put(rows, self._cast(np.take(origin, rows, axis=0), np.take(direction, rows, axis=0)))
         reference = matmul_exact(body.at(start_time_s)[0], mount)
         frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
         scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, (origin, direction, hits),
@@ -134,21 +135,35 @@ class Scanner:
         """First opaque hits of the world rays (``origin``, ``direction``: (M, 3)), through up
         to MAX_GLASS_FACES glass faces."""
         hits = _Hits(*self.geometry.cast_faces(origin, direction), np.zeros(len(origin), dtype=np.int64))
-        live = np.flatnonzero(self._glass(hits.part, hits.face))  # beams whose hit so far is a pane
-        travelled, start, t = np.zeros(len(live)), origin[live], hits.range[live]
-        for _ in range(physics.MAX_GLASS_FACES):
-            if not len(live):
-                break
-            step = t + PASS_THROUGH_M
-            travelled += step
-            hits.panes[live] += 1
-            start = start + step[:, None] * direction[live]
-            t, part, face, normal = self.geometry.cast_faces(start, direction[live])
-            hits.range[live], hits.part[live], hits.face[live], hits.normal[live] = travelled + t, part, face, normal
-            glass = self._glass(part, face)
-            live, travelled, start, t = live[glass], travelled[glass], start[glass], t[glass]
-        hits.part[live], hits.range[live] = -1, np.inf  # still behind glass: lost
+        live = np.flatnonzero(self._glass(hits.part, hits.face))  # beams whose first hit is a pane
+        if len(live):
+            hits.put(live, self._through_glass(np.take(origin, live, axis=0), np.take(direction, live, axis=0)))
         return hits
+
+    def _through_glass(self, origin: np.ndarray, direction: np.ndarray) -> "_Hits":
+        """Hits of rays that first meet glass: the first hit among the scene's opaque faces
+        (exact, as every hit), and the glass faces crossed before it (Embree's list of every
+        glass face along the ray, with its float32 distance; a glass face up to the hit's
+        tolerance behind it, a pane's back face flush on a wall, counts as crossed); past
+        MAX_GLASS_FACES: lost."""
+        split = self._split()
+        t, part, face, normal = split.opaque.cast_faces(origin, direction)
+        met = part >= 0
+        face[met] = split.opaque_face[split.opaque_first[part[met]] + face[met]]
+        panes = split.glass.crossings(origin, direction, t + near_edge_tol(t))  # a pane flush on a wall: crossed
+        lost = panes > physics.MAX_GLASS_FACES
+        part[lost], t[lost], face[lost] = -1, np.inf, -1
+        return _Hits(t, part, face, normal, panes)
+
+    def _split(self) -> "_GlassSplit":
+        """The scene's opaque faces and its glass faces as two geometries (built on first use),
+        their moving parts placed as the scene's are."""
+        if self._glass_split is None:
+            self._glass_split = _GlassSplit(self.geometry.parts, self.transparent, self.first_face)
+        placed = {i: self.geometry.parts[i].matrix for i in self.geometry.dynamic_index}
+        self._glass_split.opaque.set_matrices(placed)
+        self._glass_split.glass.set_matrices(placed)
+        return self._glass_split
 
     def _glass(self, part: np.ndarray, face: np.ndarray) -> np.ndarray:
         """(M,) bool: the hit face is a glass one (False for a miss)."""
@@ -160,17 +175,12 @@ class Scanner:
         """The sweep's detected returns as a :class:`Scan`, their float64 world points and
         their beams; ``cast``: every beam's world ray (origin, direction) and its hit."""
         origin, direction, hits = cast
-        rows = np.flatnonzero(hits.part >= 0)
-        part, face = hits.part[rows], hits.face[rows]
-        rho = self.reflectivity[self.first_face[part] + face]
-        cos = np.empty(len(rows))
-        kernels.incidence(rows, hits.normal, direction, cos)
-        tau = physics.transmission(hits.panes[rows])
-        exact = hits.range[rows]
-        measured = physics.noisy(exact, sensor.range_noise_sigma_m, draws[rows])
-        keep = physics.detected(sensor, rho, cos, exact, measured, tau)
-        rows, part, measured, exact = rows[keep], part[keep], measured[keep], exact[keep]
-        m = len(rows)
+        n = len(hits.part)
+        rows, measured, exact, value = np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n, np.float32)
+        m = physics.returns(hits.part, hits.face, self.first_face, self.reflectivity, hits.normal, direction, hits.panes,
+                            hits.range, draws, physics.rules(sensor), rows, measured, exact, value)
+        rows, measured, exact, value = rows[:m], measured[:m], exact[:m], value[:m]
+        part = hits.part[rows]
         world, xyz = np.empty((m, 3)), np.empty((m, 3), dtype=np.float32)
         deskewed, surface = np.empty((m, 3), dtype=np.float32), np.empty((m, 3), dtype=np.float32)
         to_sensor = affine_inverse(reference)
@@ -182,8 +192,7 @@ class Scanner:
             deskewed[moved] = apply_affine(to_sensor, frozen.at_reference(world[moved], *at))
             surface[moved] = apply_affine(to_sensor, frozen.at_reference(
                 origin[rows[moved]] + exact[moved, None] * direction[rows[moved]], *at))
-        scan = Scan(sensor.name, index, float(start_time_s), reference, xyz, deskewed,
-                    physics.intensity(rho[keep], cos[keep], tau[keep]).astype(np.float32),
+        scan = Scan(sensor.name, index, float(start_time_s), reference, xyz, deskewed, value,
                     beams.ring[rows].astype(np.uint16), beams.time[rows].astype(np.float32),
                     self.label_of_part[part].astype(np.uint16), self.instance_of_part[part].astype(np.uint16),
                     xyz_exact=surface)
@@ -198,6 +207,29 @@ def _world_rays(body: MotionTrack, mount: np.ndarray, start_time_s: float, beams
     origin, direction = np.empty((n, 3)), np.empty((n, 3))
     kernels.posed_rays(beams.directions, beams.firing, poses, origin, direction)
     return origin, direction
+
+
+class _GlassSplit:
+    """The faces of ``parts`` split into an opaque geometry and a glass one (``transparent``:
+    every part's faces' flags, part p's face f at ``first_face[p] + f``): part p's opaque face
+    k is its face ``opaque_face[opaque_first[p] + k]``."""
+
+    def __init__(self, parts, transparent: np.ndarray, first_face: np.ndarray):
+        opaque, glass, kept = [], [], []
+        for p, part in enumerate(parts):
+            flags = transparent[first_face[p]:first_face[p] + len(part.faces)]
+            kept.append(np.flatnonzero(~flags))
+            opaque.append(_faces_of(part, kept[-1]))
+            glass.append(_faces_of(part, np.flatnonzero(flags)))
+        self.opaque, self.glass = SceneGeometry(opaque), SceneGeometry(glass)
+        self.opaque_face = np.concatenate([np.zeros(0, np.int64)] + kept).astype(np.int64)
+        self.opaque_first = np.cumsum([0] + [len(k) for k in kept])[:-1].astype(np.int64)
+
+
+def _faces_of(part, faces: np.ndarray):
+    """``part`` with only its faces ``faces`` (indices), same vertices and pose."""
+    return replace(part, faces=part.faces[faces], matrix=part.matrix.copy(), closed=False,
+                   face_reflectivity=None, face_transparent=None)
 
 
 class _Freeze:
