@@ -23,24 +23,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from generator.blender import session  # noqa: E402,F401  (bpy first)
 
-from generator import Simulator  # noqa: E402
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, nargs="+", default=[0, 13, 26])
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--opencv", default="-0.22,0.05,0.0015,-0.001")
     ap.add_argument("--fisheye", default="0.02,-0.01,0.003,-0.0005")
-    ap.add_argument("--cache", type=Path, default=Path("/tmp/buildee-render-bench"))
-    args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from render import medium_site, orbit_poses
+    from render import preview_frames
 
-    sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview")
-    sim.configure_render(resolution=(640, 480))
-    poses = orbit_poses(sim, args.seed)
+    args, sim, poses = preview_frames(ap)
     lenses = {"pinhole": (), "opencv": tuple(map(float, args.opencv.split(","))),
               "fisheye": tuple(map(float, args.fisheye.split(",")))}
     times = {name: [] for name in lenses}

@@ -80,6 +80,20 @@ def orbit_poses(sim: Simulator, seed: int) -> np.ndarray:
     return plan_trajectory("orbit", sim, sim.spawn_points, start, seed, ORBIT_FRAMES, 10.0).poses
 
 
+def preview_frames(argv_parser) -> tuple:
+    """The preview-frame benchmarks' common set-up: adds ``--frames``, ``--rounds``, ``--seed``
+    and ``--cache`` to ``argv_parser``, parses it, and returns (args, a Simulator of the medium
+    site of ``--seed`` at 640x480 with the ``preview`` preset, the batch job's orbit poses)."""
+    argv_parser.add_argument("--frames", type=int, nargs="+", default=[0, 13, 26])
+    argv_parser.add_argument("--rounds", type=int, default=3)
+    argv_parser.add_argument("--seed", type=int, default=0)
+    argv_parser.add_argument("--cache", type=Path, default=Path("/tmp/buildee-render-bench"))
+    args = argv_parser.parse_args()
+    sim = Simulator(medium_site(args.seed, args.cache), points_density=0.1, seed=args.seed, render_preset="preview")
+    sim.configure_render(resolution=(640, 480))
+    return args, sim, orbit_poses(sim, args.seed)
+
+
 def raw_targets(path: str) -> tuple[list, str]:
     """The Blender structs a ``--raw`` property path names, and the property's name."""
     scene = bpy.context.scene

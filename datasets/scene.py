@@ -193,6 +193,9 @@ class Sequence:
         self.K, self.width, self.height, self.poses, self.timestamps = t.K, t.width, t.height, t.poses, t.timestamps
         self.lens = t.lens  # the cameras' lens model (generator/geometry/lens.py; the ideal pinhole by default)
         self._frames = _checked(FrameReader, folder)
+        # what the camera's sensor did to rgb (generator/image_sensor.py; ideal by default) and
+        # its linear gain per frame (exposure)
+        self.image_sensor, self.exposure_gain = self._frames.image_sensor, self._frames.exposure_gain
         if (self._frames.width, self._frames.height) != (self.width, self.height):
             raise DatasetError(f"{folder / 'frames.json'}: frames of {self._frames.width}x{self._frames.height} "
                                f"pixels, cameras of {self.width}x{self.height}; regenerate this seed with python -m generator")

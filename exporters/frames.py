@@ -18,6 +18,7 @@ import numpy as np
 from PIL import Image
 
 from generator.geometry.lens import PINHOLE, Lens
+from generator.image_sensor import IDEAL, ImageSensor
 
 from .exr import read_frame_exr, write_frame
 from .hdf5 import REMEDY, DamagedFileError, access_error
@@ -115,6 +116,7 @@ class FramesSink:
         # None where the caller's context does not say)
         self.ground_truth = context.options.get("ground_truth")
         self.sensitivity = context.options.get("segmentation_sensitivity")
+        self.image_sensor, self.gains = context.image_sensor, {}
 
     def add_frame(self, frame: FrameRecord) -> None:
         i = frame.index
@@ -125,6 +127,7 @@ class FramesSink:
             for prefix, kind in MODALITIES[n].pngs:
                 write_png(self.folder / png_name(prefix, i), frame.outputs[n], kind, n)
         self.frames = max(self.frames, i + 1)
+        self.gains[i] = float(frame.exposure_gain)
 
     def close(self) -> None:
         doc = {"format": "frames-1", "frames": self.frames, "width": self.size[0], "height": self.size[1],
@@ -135,6 +138,13 @@ class FramesSink:
                                    "(depth, labels, ids, normals, flow, tracks)"},
                "ground_truth": self.ground_truth, "segmentation_sensitivity": self.sensitivity,
                "modalities": {n: describe(MODALITIES[n], self.ground_truth, self.sensitivity) for n in self.names}}
+        if not self.image_sensor.ideal:
+            doc["image_sensor"] = self.image_sensor.as_dict() | {
+                "exposure_gain": [self.gains.get(i, 1.0) for i in range(self.frames)],
+                "meaning": "what the camera's sensor did to rgb (the display colour) only: decoded by the sRGB "
+                           "curve, times exposure_gain (per frame), shot and read noise in electrons of the full "
+                           "well, encoded back, JPEG at jpeg_quality (docs/cameras.md); rgb_linear and every "
+                           "ground truth are as rendered and cast"}
         (self.folder / INDEX_FILE).write_text(json.dumps(doc, indent=1))
 
 
@@ -170,6 +180,12 @@ class FrameReader:
             camera = doc.get("camera")  # written since #41
             self.K = None if camera is None else np.asarray(camera["K"], np.float64)
             self.lens = PINHOLE if camera is None else Lens.from_dict(camera["lens"])
+            sensor = doc.get("image_sensor")  # written when the sensor changes rgb (#41)
+            self.image_sensor = IDEAL if sensor is None else ImageSensor.from_dict(sensor)
+            self.exposure_gain = np.ones(self.frames) if sensor is None else np.asarray(sensor["exposure_gain"],
+                                                                                         np.float64)
+            if self.exposure_gain.shape != (self.frames,) or not np.all(np.isfinite(self.exposure_gain)):
+                raise ValueError("image_sensor.exposure_gain is not one finite number per frame")
         except FileNotFoundError:
             raise DamagedFileError(f"{path}: missing; {REMEDY}") from None
         except DamagedFileError:

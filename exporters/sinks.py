@@ -19,6 +19,7 @@ import numpy as np
 
 from generator.cli_args import Option
 from generator.geometry.lens import PINHOLE, Lens
+from generator.image_sensor import IDEAL, ImageSensor
 from generator.registry import Registry, RegistryError, origin
 
 
@@ -66,6 +67,7 @@ class TrajectoryContext:
     clip: tuple[float, float] = (0.0, float("inf"))
     scene_bounds: np.ndarray | None = None
     lens: Lens = PINHOLE
+    image_sensor: ImageSensor = IDEAL
 
 
 @dataclass
@@ -80,6 +82,7 @@ class FrameRecord:
     visible (N,) bool: the point is visible in this frame (docs/conventions.md).
     object_matrices (D, 4, 4): world_from_object of ``dynamic_objects`` at this frame.
     coverage: share of points observed at least once, after this frame (0..1).
+    exposure_gain: the linear gain the image sensor applied to the display colour (1: as rendered).
     """
 
     index: int
@@ -90,6 +93,7 @@ class FrameRecord:
     visible: np.ndarray
     object_matrices: np.ndarray
     coverage: float
+    exposure_gain: float = 1.0
 
 
 class Sink(Protocol):

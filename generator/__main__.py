@@ -17,8 +17,8 @@ from trajectories import TRAJECTORY_KINDS
 from .batch.config import MAX_FRAMES, MAX_PHASES, MAX_SCORING_POINTS, RunConfig
 from .batch.executors import add_executor_arguments, executor_arguments_problem
 from .checks import MAX_SEED
-from .cli_args import (OneLineParser, check_out_folder, coefficients, first_repeated, int_at_least, out_folder,
-                       positive_float, resolution)
+from .cli_args import (OneLineParser, check_out_folder, coefficients, exposure, first_repeated, int_at_least,
+                       out_folder, positive_float, resolution)
 from .geometry.lens import MODELS as LENS_MODELS
 from .render_settings import DEVICES, NO_GPU_MESSAGE, probe_gpu
 from .render_settings import PRESETS as RENDER_PRESETS
@@ -126,6 +126,14 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--distortion", type=coefficients, default=DEFAULTS.distortion,
                    help="the lens's coefficients, comma-separated: k1,k2,p1,p2[,k3] for opencv, k1,k2,k3,k4 for "
                         "fisheye (default: all zero)")
+    p.add_argument("--exposure", type=exposure, default=DEFAULTS.exposure,
+                   help="the cameras' exposure: 'auto' (average metering to mid-grey, per frame), a compensation in "
+                        "stops (-10 to 10), or as-rendered (default; docs/cameras.md)")
+    p.add_argument("--sensor-noise", type=coefficients, default=DEFAULTS.sensor_noise, metavar="FULL_WELL,READ",
+                   help="shot and read noise on the display colour: electrons at saturation and read noise sigma in "
+                        "electrons, e.g. 6000,3 (default: none)")
+    p.add_argument("--jpeg-quality", type=int_at_least(1, "jpeg-quality", 100), default=DEFAULTS.jpeg_quality,
+                   help="JPEG-compress the display colour at this quality, 1 to 100 (default: none)")
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
@@ -151,6 +159,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             phases=args.phases, weather=args.weather, ground=args.ground,
                             building_type=args.building_type, context=args.context, season=args.season,
                             camera_model=args.camera_model, distortion=args.distortion,
+                            exposure=args.exposure, sensor_noise=args.sensor_noise, jpeg_quality=args.jpeg_quality,
                             exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()

@@ -113,6 +113,20 @@ def coefficients(text: str) -> tuple[float, ...]:
     return tuple(v + 0.0 for v in values)
 
 
+def exposure(text: str) -> str | float:
+    """An argparse type: 'auto', 'as-rendered' or a number of stops from -10 to 10."""
+    if text in ("auto", "as-rendered"):
+        return text
+    try:
+        value = float(text) if len(text) < 40 else math.nan
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and -10 <= value <= 10):
+        raise argparse.ArgumentTypeError(f"exposure must be auto, as-rendered or a number of stops from -10 to 10, "
+                                         f"got {text[:40]!r}")
+    return value + 0.0
+
+
 def resolution(text: str) -> tuple[int, int]:
     """WxH in pixels, each side as render_settings.check_side allows."""
     try:

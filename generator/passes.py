@@ -40,6 +40,8 @@ class RenderOutput:
     K, world_from_camera, frame: the camera and time the image was rendered with.
     extra: further modalities by name when they were asked for: from the geometry (``normal``,
         ``flow``: ``render_outputs``) or from further Blender passes (``render(outputs=...)``).
+    exposure_gain: the linear gain the image sensor applied to ``rgb`` (1: as rendered;
+        ``Simulator.set_image_sensor``, docs/cameras.md).
     """
 
     rgb: np.ndarray
@@ -51,6 +53,7 @@ class RenderOutput:
     world_from_camera: np.ndarray
     frame: int
     extra: dict = field(default_factory=dict)
+    exposure_gain: float = 1.0
 
     @classmethod
     def of(cls, arrays: dict[str, np.ndarray], K: np.ndarray, world_from_camera: np.ndarray,

@@ -30,6 +30,7 @@ from .geometry.spawn import respawn_pose, sample_spawn_points
 from .geometry.surface_points import SurfacePoints
 from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
+from .image_sensor_api import ImageSensors
 from .lens_api import Lenses
 from .lidar_api import LidarScans
 from .paper_api import PaperAPI
@@ -37,7 +38,7 @@ from .passes import RenderOutput
 from .view_render import ViewRenderer
 
 
-class Simulator(CameraMoves, LidarScans, Lenses, PaperAPI):
+class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``
@@ -457,7 +458,7 @@ class Simulator(CameraMoves, LidarScans, Lenses, PaperAPI):
         out = self._views.render(self._camera_model(), self._world_from_camera, self.frame,
                                  self.segmentation_sensitivity, self.ground_truth, outputs)
         self.last_render_timings = dict(self._views.last_timings)
-        return out
+        return self._sense(out)
 
     def render_geometry(self, normals: bool = True) -> GeometricRender:
         """The current view by ray casting the Simulator's geometry, one ray per pixel centre,

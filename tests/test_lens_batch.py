@@ -1,6 +1,7 @@
-"""``python -m generator --camera-model opencv --distortion ...``: every file that holds a
-camera carries the lens, and every projection in them goes through it (checked with OpenCV
-and pycolmap, not with our own projection)."""
+"""``python -m generator --camera-model opencv --distortion ... --exposure auto --sensor-noise
+...``: every file that holds a camera carries the lens, and every projection in them goes
+through it (checked with OpenCV and pycolmap, not with our own projection); the image sensor
+is recorded with its gain per frame."""
 
 import json
 
@@ -17,7 +18,8 @@ DISTORTION = (-0.22, 0.05, 0.0015, -0.001)
 def seed(tmp_path_factory):
     out = tmp_path_factory.mktemp("lens")
     r = run_generator(out, "--seeds", "2", "--trajectory", "orbit", "--camera-model", "opencv",
-                      "--distortion=" + ",".join(map(str, DISTORTION)))
+                      "--distortion=" + ",".join(map(str, DISTORTION)), "--exposure", "auto",
+                      "--sensor-noise", "6000,3")
     assert r.returncode == 0, r.stderr[-3000:]
     return out / "seed_000002"
 
@@ -76,6 +78,26 @@ def test_frames_transforms_and_ground_truth_carry_the_lens(seed):
     assert read_ground_truth(seed / "ground_truth").lens == frames.lens
     manifest = json.loads((seed / "manifest.json").read_text())
     assert manifest["config"]["camera_model"] == "opencv" and manifest["config"]["distortion"][:4] == list(DISTORTION)
+
+
+@pytest.mark.pipeline
+def test_the_image_sensor_is_recorded_with_its_gain_per_frame(seed):
+    from exporters.frames import FrameReader
+    from generator.image_sensor import ImageSensor
+
+    frames = FrameReader(seed / "orbit")
+    assert frames.image_sensor == ImageSensor(None, 6000.0, 3.0, None)
+    assert frames.exposure_gain.shape == (frames.frames,) and np.all((frames.exposure_gain >= 1 / 8)
+                                                                     & (frames.exposure_gain <= 8))
+    assert len(set(frames.exposure_gain.tolist())) > 1  # metered per frame
+    config = json.loads((seed / "manifest.json").read_text())["config"]
+    assert config["exposure"] == "auto" and config["sensor_noise"] == [6000.0, 3.0] and "jpeg_quality" not in config
+    from datasets import Scene
+
+    seq = Scene(seed)["orbit"]
+    assert seq.image_sensor == frames.image_sensor and np.array_equal(seq.exposure_gain, frames.exposure_gain)
+    rgb = frames.read(0, ["rgb"])["rgb"]
+    assert rgb.shape == (frames.height, frames.width, 3) and 0 < rgb.mean() < 1
 
 
 @pytest.mark.pipeline

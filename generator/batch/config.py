@@ -9,6 +9,7 @@ import numpy as np
 from ..checks import check_integer, check_number
 from ..geometry.camera import site_intrinsics
 from ..geometry.lens import Lens, lens_of
+from ..image_sensor import ImageSensor, image_sensor_of
 from ..render_settings import check_side
 from ..scene.building_types import check_building_type
 from ..scene.contexts import check_context
@@ -25,7 +26,8 @@ MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may ge
 
 
 IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None,
-                  "camera_model": "pinhole", "distortion": []}  # config keys a manifest leaves out when they hold these values
+                  "camera_model": "pinhole", "distortion": [], "exposure": "as-rendered", "sensor_noise": [],
+                  "jpeg_quality": None}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,15 @@ class RunConfig:
     season: str | None = None  # every seed's season (generator/scene/weather.py); None: drawn per seed
     camera_model: str = "pinhole"  # the cameras' lens model (generator/geometry/lens.py): pinhole, opencv, fisheye
     distortion: tuple[float, ...] = ()  # its coefficients, OpenCV's order (opencv: k1 k2 p1 p2 k3; fisheye: k1-k4)
+    # the image sensor (generator/image_sensor.py): exposure "as-rendered", "auto" or stops; noise
+    # (full well electrons, read noise electrons) or (); JPEG quality 1-100 or None
+    exposure: str | float = "as-rendered"
+    sensor_noise: tuple[float, ...] = ()
+    jpeg_quality: int | None = None
+
+    def image_sensor(self) -> ImageSensor:
+        """The cameras' image sensor (ValueError in one line for values it cannot have)."""
+        return image_sensor_of(self.exposure, self.sensor_noise, self.jpeg_quality)
 
     def lens(self) -> Lens:
         """The cameras' lens model (ValueError in one line for a model or coefficients it cannot be)."""
@@ -82,6 +93,7 @@ class RunConfig:
         check_building_type(self.building_type)
         check_context(self.context)
         check_season(self.season)
+        self.image_sensor()
         lens = self.lens()
         lens.check(site_intrinsics(w, h).K, w, h)  # one-to-one over the image of the sites' camera
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):
@@ -117,6 +129,7 @@ class RunConfig:
         d["resolution"], d["trajectories"] = list(self.resolution), list(self.trajectories)
         d["outputs"] = list(self.outputs)
         d["distortion"] = list(self.distortion)
+        d["sensor_noise"] = list(self.sensor_noise)
         d |= export_values(d.pop("exports"))
         for key, value in IMPLIED_CONFIG.items():  # a one-stage run's config reads as before timelines existed
             if d[key] == value:
@@ -129,7 +142,8 @@ class RunConfig:
         own = {f.name for f in fields(cls)} - {"exports"}
         return cls(**({k: v for k, v in d.items() if k in own} | {
             "resolution": tuple(d["resolution"]), "trajectories": tuple(d["trajectories"]),
-            "outputs": tuple(d.get("outputs", ())), "exports": {k: v for k, v in d.items() if k not in own}}))
+            "outputs": tuple(d.get("outputs", ())), "distortion": tuple(d.get("distortion", ())),
+            "sensor_noise": tuple(d.get("sensor_noise", ())), "exports": {k: v for k, v in d.items() if k not in own}}))
 
 
 def export_values(given: dict) -> dict:

@@ -70,7 +70,7 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         options=export_values(exports or {}) | {"plan": plan, "ground_truth": sim.ground_truth,
                                                 "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
-        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens)
+        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens, image_sensor=sim.image_sensor)
     sinks = [factory(context) for factory in load_sinks().values()]
     sim.reset_observations()
     coverage, tracks = [], 0
@@ -82,7 +82,7 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         # tracks and COLMAP observations: every point the image shows, at any depth
         points, _, visible = sim.compute_point_cloud(update_mask=False, max_depth=math.inf)
         record = FrameRecord(i, float(context.timestamps[i]), pose, {n: r.outputs[n] for n in names}, points, visible,
-                             sim.dynamic_object_matrices(), sim.coverage)
+                             sim.dynamic_object_matrices(), sim.coverage, r.exposure_gain)
         for sink in sinks:
             sink.add_frame(record)
         coverage.append(sim.coverage)

@@ -93,6 +93,7 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
         sim = simulator(blends[k], table)  # one object table: an object's instance id is the same in every stage
         sim.configure_render(resolution=cfg.resolution, device=cfg.device)
         sim.set_lens(cfg.camera_model, cfg.lens().coefficients)
+        sim.image_sensor = cfg.image_sensor()  # exposure, noise, JPEG of the display colour
         per_kind, visible = fly_scene(sim, trajectories.items(), out, seed, plans[k], cfg, lambda: emit(event="frame"))
         tracks += visible
         stage = {"points": sim.num_points, "trajectories": per_kind}

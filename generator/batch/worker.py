@@ -47,6 +47,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     check_point_budget(cfg, sim.num_points)  # before any rendering
     sim.configure_render(resolution=cfg.resolution, device=cfg.device)
     sim.set_lens(cfg.camera_model, cfg.lens().coefficients)
+    sim.image_sensor = cfg.image_sensor()  # exposure, noise, JPEG of the display colour
     start = sim.respawn_camera()
     # every trajectory planned before the first frame is rendered: one that cannot be planned
     # (too many frames for the site: docs/trajectories.md) fails the seed in seconds

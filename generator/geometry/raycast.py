@@ -200,8 +200,8 @@ class SceneGeometry:
         from .exact_kernels import float32_rays
 
         rays = np.empty((n, 6), dtype=np.float32)
-        float32_rays(np.ascontiguousarray(origins, dtype=np.float64), np.ascontiguousarray(directions, dtype=np.float64),
-                     rays)
+        float32_rays(np.ascontiguousarray(origins, dtype=np.float64),
+                     np.ascontiguousarray(directions, dtype=np.float64), rays)
         t_rays = tensor(rays)
         for scene in self._scenes():
             found = scene.list_intersections(t_rays)

@@ -177,8 +177,8 @@ class Scanner:
         origin, direction, hits = cast
         n = len(hits.part)
         rows, measured, exact, value = np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n, np.float32)
-        m = physics.returns(hits.part, hits.face, self.first_face, self.reflectivity, hits.normal, direction, hits.panes,
-                            hits.range, draws, physics.rules(sensor), rows, measured, exact, value)
+        m = physics.returns(hits.part, hits.face, self.first_face, self.reflectivity, hits.normal, direction,
+                            hits.panes, hits.range, draws, physics.rules(sensor), rows, measured, exact, value)
         rows, measured, exact, value = rows[:m], measured[:m], exact[:m], value[:m]
         part = hits.part[rows]
         world, xyz = np.empty((m, 3)), np.empty((m, 3), dtype=np.float32)
