@@ -117,6 +117,7 @@ class FramesSink:
         self.ground_truth = context.options.get("ground_truth")
         self.sensitivity = context.options.get("segmentation_sensitivity")
         self.image_sensor, self.gains = context.image_sensor, {}
+        self.shutter_s = float(context.options.get("shutter_s", 0.0))
 
     def add_frame(self, frame: FrameRecord) -> None:
         i = frame.index
@@ -138,6 +139,10 @@ class FramesSink:
                                    "(depth, labels, ids, normals, flow, tracks)"},
                "ground_truth": self.ground_truth, "segmentation_sensitivity": self.sensitivity,
                "modalities": {n: describe(MODALITIES[n], self.ground_truth, self.sensitivity) for n in self.names}}
+        if self.shutter_s > 0:
+            doc["shutter"] = {"seconds": self.shutter_s, "meaning": "rgb and rgb_linear are exposed from t - seconds/2 "
+                              "to t + seconds/2 around each frame's time t (the camera and the machines moving: "
+                              "motion blur); every other modality is of the frame's time t (docs/cameras.md)"}
         if not self.image_sensor.ideal:
             doc["image_sensor"] = self.image_sensor.as_dict() | {
                 "exposure_gain": [self.gains.get(i, 1.0) for i in range(self.frames)],
@@ -180,6 +185,7 @@ class FrameReader:
             camera = doc.get("camera")  # written since #41
             self.K = None if camera is None else np.asarray(camera["K"], np.float64)
             self.lens = PINHOLE if camera is None else Lens.from_dict(camera["lens"])
+            self.shutter_s = float(doc.get("shutter", {}).get("seconds", 0.0))  # written with motion blur (#41)
             sensor = doc.get("image_sensor")  # written when the sensor changes rgb (#41)
             self.image_sensor = IDEAL if sensor is None else ImageSensor.from_dict(sensor)
             self.exposure_gain = np.ones(self.frames) if sensor is None else np.asarray(sensor["exposure_gain"],

@@ -134,6 +134,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                         "electrons, e.g. 6000,3 (default: none)")
     p.add_argument("--jpeg-quality", type=int_at_least(1, "jpeg-quality", 100), default=DEFAULTS.jpeg_quality,
                    help="JPEG-compress the display colour at this quality, 1 to 100 (default: none)")
+    p.add_argument("--shutter", type=positive_float(zero=True), default=DEFAULTS.shutter_s, metavar="SECONDS",
+                   help="motion blur: the shutter's time in seconds, 0 to 0.1 (one frame), centred on each frame; "
+                        "the colour is blurred by the camera's and the machines' motion, the ground truth stays "
+                        "that of the frame's time (default: 0, none; docs/cameras.md)")
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
@@ -160,6 +164,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             building_type=args.building_type, context=args.context, season=args.season,
                             camera_model=args.camera_model, distortion=args.distortion,
                             exposure=args.exposure, sensor_noise=args.sensor_noise, jpeg_quality=args.jpeg_quality,
+                            shutter_s=args.shutter,
                             exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()

@@ -5,6 +5,8 @@ the render's depth, labels and ids share (generator/geometry/pixel_truth.py)."""
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 
 from exporters.modalities import MODALITIES, resolve
@@ -63,12 +65,16 @@ def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int
     the current view; Blender renders only if a ``render`` modality is asked for, with the
     passes of those asked for (and of the ones every render holds)."""
     names = resolve(names)
+    if poses is not None:
+        poses, object_matrices, index = check_trajectory(poses, object_matrices, index, len(sim.dynamic_objects))
     computed = [n for n in names if MODALITIES[n].source == "geometry"]
     rendered = [n for n in names if MODALITIES[n].source == "render"]
     # the pixel-centre cast first: render()'s depth, labels and ids reuse it (same pose and frame)
     g = pixel_geometry(sim, poses, object_matrices, index) if computed else None
     if rendered:
-        out = sim.render(outputs=rendered)
+        moving = sim.camera_motion(poses, index) if poses is not None else contextlib.nullcontext()
+        with moving:  # the camera moves along the trajectory while the shutter is open
+            out = sim.render(outputs=rendered)
     else:
         out = RenderOutput(None, None, None, None, None, sim.K.copy(), sim.get_world_from_camera(), sim.frame)
     out.extra.update({n: MODALITIES[n].compute(g) for n in computed})

@@ -32,13 +32,14 @@ from .geometry.visibility import ViewLimits, VisibilityStats, visible_points
 from .camera_moves import CameraMoves
 from .image_sensor_api import ImageSensors
 from .lens_api import Lenses
+from .shutter_api import Shutters
 from .lidar_api import LidarScans
 from .paper_api import PaperAPI
 from .passes import RenderOutput
 from .view_render import ViewRenderer
 
 
-class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, PaperAPI):
+class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, Shutters, PaperAPI):
     """A camera flying through a Blender scene, with ground-truth surface points.
 
     Units: metres, seconds, degrees where stated. Poses are OpenCV ``world_from_camera``

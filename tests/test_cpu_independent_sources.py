@@ -41,6 +41,8 @@ ALLOWED = {
         "settles whole groups of points only with a margin; the answer is the per-point rule's "
         "(tests/test_visibility.py: the same bits as testing every point)",
     ("generator/geometry/point_blocks.py", "self.abs_a @ np.abs(c)"): "the margin of the line above",
+    ("generator/blender/shutter.py", "previous.dot(rotation)"):
+        "only its sign, of two rotations a frame apart (near +-1): which of q and -q keys the camera's path",
 }
 
 

@@ -1,7 +1,7 @@
 """``python -m generator --camera-model opencv --distortion ... --exposure auto --sensor-noise
 ...``: every file that holds a camera carries the lens, and every projection in them goes
 through it (checked with OpenCV and pycolmap, not with our own projection); the image sensor
-is recorded with its gain per frame."""
+(with its gain per frame) and the shutter (``--shutter``: motion blur) are recorded."""
 
 import json
 
@@ -19,7 +19,7 @@ def seed(tmp_path_factory):
     out = tmp_path_factory.mktemp("lens")
     r = run_generator(out, "--seeds", "2", "--trajectory", "orbit", "--camera-model", "opencv",
                       "--distortion=" + ",".join(map(str, DISTORTION)), "--exposure", "auto",
-                      "--sensor-noise", "6000,3")
+                      "--sensor-noise", "6000,3", "--shutter", "0.05")
     assert r.returncode == 0, r.stderr[-3000:]
     return out / "seed_000002"
 
@@ -81,7 +81,7 @@ def test_frames_transforms_and_ground_truth_carry_the_lens(seed):
 
 
 @pytest.mark.pipeline
-def test_the_image_sensor_is_recorded_with_its_gain_per_frame(seed):
+def test_the_image_sensor_and_the_shutter_are_recorded(seed):
     from exporters.frames import FrameReader
     from generator.image_sensor import ImageSensor
 
@@ -92,6 +92,7 @@ def test_the_image_sensor_is_recorded_with_its_gain_per_frame(seed):
     assert len(set(frames.exposure_gain.tolist())) > 1  # metered per frame
     config = json.loads((seed / "manifest.json").read_text())["config"]
     assert config["exposure"] == "auto" and config["sensor_noise"] == [6000.0, 3.0] and "jpeg_quality" not in config
+    assert config["shutter_s"] == 0.05 and frames.shutter_s == 0.05
     from datasets import Scene
 
     seq = Scene(seed)["orbit"]

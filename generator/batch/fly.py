@@ -68,7 +68,8 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         instances=sim.instance_table, parts=parts, dynamic_objects=sim.dynamic_objects, point_table=sim.point_table(),
         modalities=names, object_matrices=matrices,
         options=export_values(exports or {}) | {"plan": plan, "ground_truth": sim.ground_truth,
-                                                "segmentation_sensitivity": float(sim.segmentation_sensitivity)},
+                                                "segmentation_sensitivity": float(sim.segmentation_sensitivity),
+                                                "shutter_s": float(sim.shutter_s)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
         scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens, image_sensor=sim.image_sensor)
     sinks = [factory(context) for factory in load_sinks().values()]

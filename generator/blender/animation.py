@@ -56,6 +56,12 @@ def _action_fcurves(action, slot):
     return out
 
 
+def object_fcurves(id_data) -> list:
+    """The F-curves of ``id_data``'s active action (none without one)."""
+    ad = getattr(id_data, "animation_data", None)
+    return [] if ad is None else _action_fcurves(ad.action, ad.action_slot)
+
+
 def varying_paths(id_data) -> set[str]:
     """Data paths of a datablock (object, camera, shape keys...) driven by varying keyframes,
     F-curve modifiers, active NLA strips or valid drivers."""
