@@ -138,6 +138,10 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="motion blur: the shutter's time in seconds, 0 to 0.1 (one frame), centred on each frame; "
                         "the colour is blurred by the camera's and the machines' motion, the ground truth stays "
                         "that of the frame's time (default: 0, none; docs/cameras.md)")
+    p.add_argument("--stereo", type=positive_float(zero=True), default=DEFAULTS.stereo_baseline_m, metavar="METRES",
+                   help="a stereo pair: every trajectory also flown by a camera this many metres to the right "
+                        "(0 to 1), in <kind>_right/; rectified, disparity = fx x baseline / depth (default: 0, "
+                        "none; docs/cameras.md)")
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
@@ -164,7 +168,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             building_type=args.building_type, context=args.context, season=args.season,
                             camera_model=args.camera_model, distortion=args.distortion,
                             exposure=args.exposure, sensor_noise=args.sensor_noise, jpeg_quality=args.jpeg_quality,
-                            shutter_s=args.shutter,
+                            shutter_s=args.shutter, stereo_baseline_m=args.stereo,
                             exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()
