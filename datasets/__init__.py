@@ -10,7 +10,7 @@
 from .scene import DatasetError, Frame, Scene, Sequence
 from .scans import ScanDataset
 from .tasks import ClipDataset, FrameDataset, PointCloudDataset
-from .transforms import Compose, Crop, Resize, ToLinear, linear_to_srgb, srgb_to_linear
+from .transforms import Compose, Crop, Resize, ToLinear, Undistort, linear_to_srgb, srgb_to_linear
 
 __all__ = ["Scene", "Sequence", "Frame", "DatasetError", "FrameDataset", "ClipDataset", "PointCloudDataset", "ScanDataset",
-           "Crop", "Resize", "ToLinear", "Compose", "srgb_to_linear", "linear_to_srgb"]
+           "Crop", "Resize", "ToLinear", "Undistort", "Compose", "srgb_to_linear", "linear_to_srgb"]

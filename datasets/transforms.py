@@ -104,33 +104,44 @@ class Crop:
 
 
 class _Taps:
-    """Bilinear taps of the new pixel centres in the source image: rows r0, r1 = r0 + 1
-    (clamped) with weights, columns likewise, and the nearest source pixel."""
+    """Bilinear taps of new pixel centres at source positions ``x``, ``y`` (H', W') (pixels,
+    the source's top-left pixel centre at (0.5, 0.5)): rows r0, r1 = r0 + 1 (clamped) with
+    weights, columns likewise, the nearest source pixel, and whether the position lies in the
+    source image."""
 
-    def __init__(self, w: int, h: int, width: int, height: int):
-        def axis(n_src, n_dst):
-            x = (np.arange(n_dst) + 0.5) * n_src / n_dst - 0.5  # new centre, in source pixel-centre units
-            lo = np.clip(np.floor(x).astype(np.int64), 0, n_src - 1)
-            hi = np.clip(lo + 1, 0, n_src - 1)
-            t = np.clip(x - np.floor(x), 0, 1)
-            t = np.where(x < 0, 0.0, np.where(x > n_src - 1, 1.0, t))
-            near = np.minimum(((np.arange(n_dst) + 0.5) * n_src / n_dst).astype(np.int64), n_src - 1)
-            return lo, hi, t, near
+    def __init__(self, x: np.ndarray, y: np.ndarray, w: int, h: int):
+        def axis(p, n_src):
+            c = p - 0.5  # in source pixel-centre units
+            with np.errstate(invalid="ignore"):
+                lo = np.clip(np.floor(np.nan_to_num(c)).astype(np.int64), 0, n_src - 1)
+                t = np.clip(c - np.floor(c), 0, 1)
+                t = np.where(c < 0, 0.0, np.where(c > n_src - 1, 1.0, t))
+                near = np.minimum(np.clip(np.nan_to_num(p), 0, None).astype(np.int64), n_src - 1)
+            return lo, np.clip(lo + 1, 0, n_src - 1), t, near
 
-        self.c0, self.c1, self.tx, self.cn = axis(w, width)
-        self.r0, self.r1, self.ty, self.rn = axis(h, height)
+        self.x, self.y = x, y
+        self.c0, self.c1, self.tx, self.cn = axis(x, w)
+        self.r0, self.r1, self.ty, self.rn = axis(y, h)
+        with np.errstate(invalid="ignore"):
+            self.inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+
+    @classmethod
+    def scaled(cls, w: int, h: int, width: int, height: int) -> "_Taps":
+        """The taps of a ``width`` x ``height`` image resized from ``w`` x ``h``."""
+        x = np.broadcast_to(((np.arange(width) + 0.5) * w / width)[None, :], (height, width))
+        y = np.broadcast_to(((np.arange(height) + 0.5) * h / height)[:, None], (height, width))
+        return cls(x, y, w, h)
 
     def nearest(self, img: np.ndarray) -> np.ndarray:
-        return img[self.rn[:, None], self.cn[None, :]]
+        return img[self.rn, self.cn]
 
     def corners(self, img: np.ndarray):
-        r0, r1, c0, c1 = self.r0[:, None], self.r1[:, None], self.c0[None, :], self.c1[None, :]
-        return img[r0, c0], img[r0, c1], img[r1, c0], img[r1, c1]
+        return img[self.r0, self.c0], img[self.r0, self.c1], img[self.r1, self.c0], img[self.r1, self.c1]
 
     def bilinear(self, img: np.ndarray, smooth: np.ndarray) -> np.ndarray:
         """Bilinear where ``smooth`` (H', W') and all four taps are finite, else nearest."""
         a, b, c, d = (v.astype(np.float64) for v in self.corners(img))
-        tx, ty = self.tx[None, :], self.ty[:, None]
+        tx, ty = self.tx, self.ty
         if img.ndim == 3:
             tx, ty = tx[..., None], ty[..., None]
         with np.errstate(invalid="ignore"):  # inf taps: replaced by the nearest value below
@@ -146,7 +157,7 @@ class _Taps:
         nowhere (nothing tells a surface from the next, so no value is blended)."""
         if depth is None:
             if instance is None:
-                return np.zeros((len(self.r0), len(self.c0)), bool)
+                return np.zeros(self.r0.shape, bool)
             a, b, c, d = self.corners(instance)
             return (a >= 0) & (a == b) & (a == c) & (a == d)
         taps = np.stack([v.astype(np.float64) for v in self.corners(depth)])
@@ -170,7 +181,7 @@ class Resize:
             return out
         h, w = out[keys[0]].shape[:2]
         sx, sy = self.width / w, self.height / h
-        taps = _Taps(w, h, self.width, self.height)
+        taps = _Taps.scaled(w, h, self.width, self.height)
         smooth = taps.continuous(out.get("depth"), out.get("instance"))
         for key in keys:
             rule, img = MODALITIES[key].resample, out[key]
@@ -195,6 +206,70 @@ class Resize:
         if "K" in out:
             out["K"] = np.diag([sx, sy, 1.0]) @ np.asarray(out["K"], np.float64)
         _tracks(out, lambda xy: xy * [sx, sy], self.width, self.height)
+        return out
+
+
+class Undistort:
+    """Resample a sample seen through ``lens`` (``Sequence.lens``) into the ideal pinhole image
+    of ``K`` (default: the sample's own K) and ``size`` (width, height; default: the
+    sample's): each new pixel centre's ray is the pinhole's through K, and its value is read
+    where the lens put that ray in the source image (the same surface: planar depth, labels,
+    ids and normals are those of the ray, exactly at the source's pixel centres, bilinear
+    between them on one surface, nearest across edges; colour bilinear). Flow endpoints are
+    undistorted too (new flow = the pinhole position of the old endpoint minus the new pixel
+    centre), and so are track positions. Pixels whose ray leaves the source image get no
+    value: ids -1, depth +inf, colour and normals 0, other values NaN."""
+
+    def __init__(self, lens, K=None, size=None):
+        self.lens = lens
+        self.K = None if K is None else np.asarray(K, np.float64)
+        self.size = None if size is None else (check_integer("Undistort width", size[0], 1),
+                                               check_integer("Undistort height", size[1], 1))
+
+    def _to_pixels(self, K_src: np.ndarray, K_dst: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """Pinhole positions (..., 2) in K_dst of source positions ``xy`` (..., 2) seen through
+        the lens in K_src (NaN where the lens's inverse does not converge)."""
+        b = (xy[..., 1] - K_src[1, 2]) / K_src[1, 1]
+        a = (xy[..., 0] - K_src[0, 2] - K_src[0, 1] * b) / K_src[0, 0]
+        a, b, ok = self.lens.undistort_where(a, b)
+        pixels = np.stack([K_dst[0, 0] * a + K_dst[0, 1] * b + K_dst[0, 2], K_dst[1, 1] * b + K_dst[1, 2]], -1)
+        return np.where(ok[..., None], pixels, np.nan)
+
+    def __call__(self, sample: dict) -> dict:
+        out = dict(sample)
+        keys = _image_keys(out)
+        if not keys or "K" not in out:
+            raise ValueError("Undistort needs an image and K in the sample (the lens maps through K)")
+        h, w = out[keys[0]].shape[:2]
+        K_src = np.asarray(out["K"], np.float64)
+        K_dst = K_src if self.K is None else self.K
+        width, height = self.size or (w, h)
+        j, i = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+        b = (i - K_dst[1, 2]) / K_dst[1, 1]
+        ad, bd = self.lens.distort((j - K_dst[0, 2] - K_dst[0, 1] * b) / K_dst[0, 0], b)
+        taps = _Taps(K_src[0, 0] * ad + K_src[0, 1] * bd + K_src[0, 2], K_src[1, 1] * bd + K_src[1, 2], w, h)
+        smooth = taps.continuous(out.get("depth"), out.get("instance"))
+        for key in keys:
+            rule, img = MODALITIES[key].resample, out[key]
+            if rule == "nearest":
+                v, fill = taps.nearest(img), -1
+            else:
+                v = taps.bilinear(img, np.ones_like(smooth) if rule == "area" else smooth)
+                fill = 0.0 if rule in ("area", "unit_vector") else np.inf if key == "depth" else np.nan
+                if rule == "unit_vector":
+                    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+                    v = np.where(norm > 0, v / np.where(norm > 0, norm, 1), 0.0)
+                elif rule == "flow":
+                    end = self._to_pixels(K_src, K_dst, np.stack([taps.x, taps.y], -1) + v)
+                    v = end - np.stack([j, i], -1)
+            v = np.where(taps.inside[..., None] if v.ndim == 3 else taps.inside, v, fill)
+            out[key] = v.astype(img.dtype)
+        def move(xy):
+            return self._to_pixels(K_src, K_dst, xy)
+
+        _objects(out, move, width, height, lambda m: np.where(taps.inside, taps.nearest(m), 0).astype(m.dtype))
+        out["K"] = K_dst.copy()
+        _tracks(out, move, width, height)
         return out
 
 

@@ -118,3 +118,25 @@ def test_flow_through_a_lens_lands_where_opencv_projects_the_point():
     j, i = np.meshgrid(np.arange(W) + 0.5, np.arange(H) + 0.5)
     expected = theirs[:, 0] - np.stack([j, i], -1).reshape(-1, 2)
     assert np.max(np.abs(flow.reshape(-1, 2) - expected)) < 1e-3  # float32 flow
+
+
+@pytest.mark.parametrize("lens", [Lens("opencv", (-0.3, 0.08, 0.002, -0.0015, 0.0)), Lens("fisheye", (0.02, -0.01, 0.003, -0.0005))])
+def test_undistorting_a_sample_moves_tracks_and_flow_to_their_pinhole_positions(lens):
+    """datasets.Undistort: a track at the lens's projection of a point goes to OpenCV's pinhole
+    projection of it (cv2.projectPoints without distortion); a zero flow stays zero (each new
+    pixel's source position maps back onto its own centre)."""
+    from datasets import Undistort
+
+    K = np.array([[60.0, 0, 40], [0, 60, 30], [0, 0, 1]])
+    rng = np.random.default_rng(3)
+    pts = np.column_stack([rng.uniform(-2, 2, 50), rng.uniform(-1.5, 1.5, 50), rng.uniform(4, 9, 50)])
+    xy, _ = lens.project(K, pts)
+    pinhole, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), K, None)
+    sample = {"depth": np.ones((60, 80), np.float32), "flow": np.zeros((60, 80, 2), np.float32), "K": K,
+              "tracks": {"xy": xy, "visible": np.ones(len(xy), bool)}}
+    out = Undistort(lens)(sample)
+    assert np.allclose(out["tracks"]["xy"], pinhole[:, 0], atol=1e-6)
+    inside = (pinhole[:, 0, 0] >= 0) & (pinhole[:, 0, 0] < 80) & (pinhole[:, 0, 1] >= 0) & (pinhole[:, 0, 1] < 60)
+    assert np.array_equal(out["tracks"]["visible"], inside)
+    finite = np.isfinite(out["flow"]).all(-1)
+    assert finite.mean() > 0.9 and np.abs(out["flow"][finite]).max() < 1e-5

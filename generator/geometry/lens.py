@@ -178,16 +178,24 @@ class Lens:
     def undistort(self, ad: np.ndarray, bd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Normalised (a, b) whose distorted coordinates are (ad, bd): the inverse map, to
         float64 round-off (ValueError where it does not converge: a lens that folds there)."""
-        ad, bd = np.asarray(ad, dtype=np.float64), np.asarray(bd, dtype=np.float64)
-        if self.ideal:
-            return ad.copy(), bd.copy()
-        a, b = (self._undistort_fisheye if self.model == "fisheye" else self._undistort_opencv)(ad, bd)
-        ra, rb = self.distort(a, b)
-        residual = np.maximum(np.abs(ra - ad), np.abs(rb - bd))
-        if not np.all(residual <= INVERSE_TOL * np.maximum(1.0, np.abs(ad) + np.abs(bd))):
+        a, b, converged = self.undistort_where(ad, bd)
+        if not np.all(converged):
             raise ValueError(f"the {self.model} lens {list(self.coefficients)} cannot be inverted at every pixel (it "
                              "folds back inside the image); use smaller distortion coefficients")
         return a, b
+
+    def undistort_where(self, ad: np.ndarray, bd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As :meth:`undistort`, never raising: (a, b, converged), ``converged`` (bool) False
+        where the inverse did not reach float64 round-off (a, b there are meaningless)."""
+        ad, bd = np.asarray(ad, dtype=np.float64), np.asarray(bd, dtype=np.float64)
+        if self.ideal:
+            return ad.copy(), bd.copy(), np.ones(ad.shape, bool)
+        with np.errstate(all="ignore"):
+            a, b = (self._undistort_fisheye if self.model == "fisheye" else self._undistort_opencv)(ad, bd)
+            ra, rb = self.distort(a, b)
+            residual = np.maximum(np.abs(ra - ad), np.abs(rb - bd))
+            converged = residual <= INVERSE_TOL * np.maximum(1.0, np.abs(ad) + np.abs(bd))
+        return a, b, converged
 
     def _undistort_opencv(self, ad, bd):
         k1, k2, p1, p2, k3 = self.coefficients
