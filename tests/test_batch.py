@@ -248,7 +248,8 @@ def _is_worker_of(proc_dir: Path, out: Path) -> bool:
 @pytest.mark.pipeline
 def test_killed_run_resumes(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "OCIO"}
-    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--frames", "12", "--seeds", "8", "9"]
+    args = [sys.executable, "-m", "generator", "--out", str(tmp_path), *TINY, "--frames", "12", "--trajectory", "orbit",
+            "--seeds", "8", "9"]
     proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     deadline = time.time() + 240
@@ -290,13 +291,13 @@ def test_a_worker_whose_runner_died_during_its_start_up_exits_before_working(tmp
 
 @pytest.mark.pipeline
 def test_a_trajectory_that_cannot_be_planned_fails_before_any_frame_is_rendered(tmp_path):
-    """A 2 km fly-through (5,000 frames; 1.4 km already fits nowhere) fits nowhere on small
-    seed 3 (docs/trajectories.md): the seed fails with the planner's one-line error before
+    """A 1.4 km fly-through (3,600 frames) fits nowhere on small seed 3
+    (docs/trajectories.md): the seed fails with the planner's one-line error before
     the orbit, planned and flown first, renders anything (it used to render all the orbit's
     frames, then fail)."""
-    r = run(tmp_path, "--seeds", "3", "--frames", "5000", "--resolution", "8x6", "--outputs", "rgb", timeout=300)
+    r = run(tmp_path, "--seeds", "3", "--frames", "3600", "--resolution", "8x6", "--outputs", "rgb", timeout=300)
     assert r.returncode == 1
-    assert "seed 3: FAILED" in r.stdout and "TrajectoryError: no collision-free fly-through of 2000 m" in r.stdout
+    assert "seed 3: FAILED" in r.stdout and "TrajectoryError: no collision-free fly-through of 1440 m" in r.stdout
     partial = tmp_path / ".seed_000003.partial"
     assert "TrajectoryError" in (partial / "error.log").read_text()
     assert (partial / "scene" / "site.blend").is_file()  # the site was built...
