@@ -85,6 +85,32 @@ def _add_rerun_arguments(p) -> None:
                    help="wait for seeds another run is writing (default: skip them, exit code 4)")
 
 
+def _add_camera_arguments(p) -> None:
+    """The cameras' options: lens, image sensor, shutter and stereo pair (docs/cameras.md)."""
+    p.add_argument("--camera-model", choices=list(LENS_MODELS), default=DEFAULTS.camera_model,
+                   help="the cameras' lens model: pinhole, opencv (radial-tangential) or fisheye (equidistant), "
+                        "with OpenCV's definitions (default: pinhole; docs/cameras.md)")
+    p.add_argument("--distortion", type=coefficients, default=DEFAULTS.distortion,
+                   help="the lens's coefficients, comma-separated: k1,k2,p1,p2[,k3] for opencv, k1,k2,k3,k4 for "
+                        "fisheye (default: all zero)")
+    p.add_argument("--exposure", type=exposure, default=DEFAULTS.exposure,
+                   help="the cameras' exposure: 'auto' (average metering to mid-grey, per frame), a compensation in "
+                        "stops (-10 to 10), or as-rendered (default; docs/cameras.md)")
+    p.add_argument("--sensor-noise", type=coefficients, default=DEFAULTS.sensor_noise, metavar="FULL_WELL,READ",
+                   help="shot and read noise on the display colour: electrons at saturation and read noise sigma in "
+                        "electrons, e.g. 6000,3 (default: none)")
+    p.add_argument("--jpeg-quality", type=int_at_least(1, "jpeg-quality", 100), default=DEFAULTS.jpeg_quality,
+                   help="JPEG-compress the display colour at this quality, 1 to 100 (default: none)")
+    p.add_argument("--shutter", type=positive_float(zero=True), default=DEFAULTS.shutter_s, metavar="SECONDS",
+                   help="motion blur: the shutter's time in seconds, 0 to 0.1 (one frame), centred on each frame; "
+                        "the colour is blurred by the camera's and the machines' motion, the ground truth stays "
+                        "that of the frame's time (default: 0, none; docs/cameras.md)")
+    p.add_argument("--stereo", type=positive_float(zero=True), default=DEFAULTS.stereo_baseline_m, metavar="METRES",
+                   help="a stereo pair: every trajectory also flown by a camera this many metres to the right "
+                        "(0 to 1), in <kind>_right/; rectified, disparity = fx x baseline / depth (default: 0, "
+                        "none; docs/cameras.md)")
+
+
 def parse_args(argv=None) -> argparse.Namespace:
     p = OneLineParser(
         prog="python -m generator",
@@ -120,28 +146,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                         f"{MAX_SCORING_POINTS // 10**6} million points in all (default: {DEFAULTS.scoring_density:g})")
     for option in export_options():  # each export's own options (--colmap-text), declared beside its sink
         option.add_to(p)
-    p.add_argument("--camera-model", choices=list(LENS_MODELS), default=DEFAULTS.camera_model,
-                   help="the cameras' lens model: pinhole, opencv (radial-tangential) or fisheye (equidistant), "
-                        "with OpenCV's definitions (default: pinhole; docs/cameras.md)")
-    p.add_argument("--distortion", type=coefficients, default=DEFAULTS.distortion,
-                   help="the lens's coefficients, comma-separated: k1,k2,p1,p2[,k3] for opencv, k1,k2,k3,k4 for "
-                        "fisheye (default: all zero)")
-    p.add_argument("--exposure", type=exposure, default=DEFAULTS.exposure,
-                   help="the cameras' exposure: 'auto' (average metering to mid-grey, per frame), a compensation in "
-                        "stops (-10 to 10), or as-rendered (default; docs/cameras.md)")
-    p.add_argument("--sensor-noise", type=coefficients, default=DEFAULTS.sensor_noise, metavar="FULL_WELL,READ",
-                   help="shot and read noise on the display colour: electrons at saturation and read noise sigma in "
-                        "electrons, e.g. 6000,3 (default: none)")
-    p.add_argument("--jpeg-quality", type=int_at_least(1, "jpeg-quality", 100), default=DEFAULTS.jpeg_quality,
-                   help="JPEG-compress the display colour at this quality, 1 to 100 (default: none)")
-    p.add_argument("--shutter", type=positive_float(zero=True), default=DEFAULTS.shutter_s, metavar="SECONDS",
-                   help="motion blur: the shutter's time in seconds, 0 to 0.1 (one frame), centred on each frame; "
-                        "the colour is blurred by the camera's and the machines' motion, the ground truth stays "
-                        "that of the frame's time (default: 0, none; docs/cameras.md)")
-    p.add_argument("--stereo", type=positive_float(zero=True), default=DEFAULTS.stereo_baseline_m, metavar="METRES",
-                   help="a stereo pair: every trajectory also flown by a camera this many metres to the right "
-                        "(0 to 1), in <kind>_right/; rectified, disparity = fx x baseline / depth (default: 0, "
-                        "none; docs/cameras.md)")
+    _add_camera_arguments(p)  # the lens, the sensor, the shutter, a stereo pair (docs/cameras.md)
     p.add_argument("--outputs", default=None,
                    help="per-frame modalities to write, comma-separated, from: " + ", ".join(MODALITIES)
                         + " (default: all; docs/format.md)")
