@@ -3,11 +3,13 @@ as parameters, bad ``actions`` and bounds, deliveries that found no spot, and a 
 without the rgb output (docs/trajectories.md, docs/phases.md)."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
+from PIL import Image
 
-from conftest import run_generator
+from exporters.phase_previews import timeline_preview
 from generator.geometry.camera import look_at
 from generator.scene import plan_site, site_params
 from trajectories import BoundedChecker, Trajectory, lawnmower, orbit, random_walk, spline_flythrough
@@ -71,9 +73,16 @@ def test_deliveries_that_find_no_spot_are_counted():
     assert counts[0] == 0 and counts == sorted(counts) and counts[-1] >= 1, counts
 
 
-@pytest.mark.pipeline
-def test_a_timeline_without_rgb_makes_its_preview_from_another_image(tmp_path):
-    r = run_generator(tmp_path, "--seeds", "5", "--phases", "2", "--trajectory", "orbit", "--outputs", "depth,instance")
-    assert r.returncode == 0, r.stderr[-2000:]
-    seed = tmp_path / "seed_000005"
-    assert (seed / "changes.png").is_file() and not (seed / "phase_0" / "orbit" / "rgb_000000.png").exists()
+def test_a_timeline_without_rgb_makes_its_preview_from_another_image(timeline_seed_folder, tmp_path):
+    """``--outputs`` may leave rgb (and label) out of a timeline: changes.png then shows the
+    first image written, named in its caption (the stage-0 frame here: the instance PNG)."""
+    seed = tmp_path / "seed"
+    shutil.copytree(timeline_seed_folder, seed)
+    (seed / "changes.png").unlink()
+    for png in [*seed.glob("phase_*/orbit/rgb_*.png"), *seed.glob("phase_*/orbit/label_*.png")]:
+        png.unlink()
+    path = timeline_preview(seed, 3, "orbit", size=120)
+    sheet = np.asarray(Image.open(path).convert("RGB"))
+    instance = np.asarray(Image.open(seed / "phase_1" / "orbit" / "instance_000000.png").convert("RGB"))
+    shown = np.asarray(Image.fromarray(instance).resize((120, sheet.shape[0] - 120 - 40), Image.BILINEAR))
+    assert np.array_equal(sheet[20:20 + shown.shape[0], 120:240], shown)
