@@ -250,6 +250,7 @@ def test_kernels_have_no_fused_multiply_add():
     SceneGeometry([ground]).cast_with_normals(np.zeros((2, 3)), np.array([[0, 0, -1.0], [0.1, 0, -1]]))  # proposed_hits
     exact_kernels.plane_hits(np.zeros((2, 3)), np.ones((2, 3)), np.eye(3, dtype=np.float32), np.zeros((2, 3), np.int32),
                              np.empty(2), np.empty((2, 3)), np.empty(2), True)
+    exact_kernels.farther_than(np.ones(2), np.ones((2, 3)), 1.0)  # which rays the moving parts may meet
     near_distance.near_distances(np.zeros((2, 3)), np.eye(3)[None], 1.0)  # the timeline's exact distances
     near_distance.point_triangle_sq(0.5, 0.5, 0.5, np.eye(3))
     index, ones = np.zeros(2, np.int64), np.ones((2, 3))
@@ -260,7 +261,7 @@ def test_kernels_have_no_fused_multiply_add():
                                 *[np.empty((2, 3), np.float32)] * 3)
     for kernel in (kernels.select_rays, kernels.view_coords_of, kernels.segment_keep_of, omni_rays,
                    exact_kernels.rows_times, exact_kernels.batch_rows_times, exact_kernels.plane_hits,
-                   exact_kernels.proposed_hits, near_distance.point_triangle_sq, near_distance.cell_pairs,
+                   exact_kernels.proposed_hits, exact_kernels.farther_than, near_distance.point_triangle_sq, near_distance.cell_pairs,
                    lidar_kernels.posed_rays, physics.returns, lidar_kernels.return_points):
         if not kernel.signatures:
             kernel(*([np.ones(2)] * 3 + ([np.ones(3)] * 3 if kernel is kernels.view_coords_of else [])))

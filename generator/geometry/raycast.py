@@ -56,6 +56,7 @@ class SceneGeometry:
         # incremented whenever a dynamic part moves (for caches of query answers)
         self.version = 0
         self._bounds, self._bounds_version = None, -1
+        self._owners = None  # the parts of the structures' geometry ids (built on first use)
         # (P,) bool: the part is a closed mesh (a solid)
         self.closed = np.array([p.closed for p in self.parts], dtype=bool)
         self.local_bounds = np.array(
@@ -236,39 +237,46 @@ class SceneGeometry:
         n = len(origins)
         rays = np.empty((n, 6), dtype=np.float32)
         float32_rays(origins, directions, rays)
-        t, part = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
-        face, unit = np.full(n, -1, dtype=np.int64), (np.zeros((n, 3), dtype=np.float32) if normals else None)
-        rows = np.arange(n)
         if self._static is not None:
             t, gid, face, unit = self._static.first_hits(origins, directions, rays, normals)
-            part = self._owner(self.static_index)[gid]
+            part = self._owner(static=True)[gid]
+            rows = None  # every ray
             if self.dynamic_index and n >= REACH_TEST_RAYS:
                 reach = self._dynamic_reach(origins)
                 if reach > 0:
                     rows = np.flatnonzero(farther_than(t, directions, reach))
+        else:
+            t, part = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+            face, unit = np.full(n, -1, dtype=np.int64), (np.zeros((n, 3), dtype=np.float32) if normals else None)
+            rows = None
+        if rows is None:
+            rows = np.arange(n)
         dynamic = self._dynamic_structure() if len(rows) else None  # built only when asked
         if dynamic is not None:
             sub = (origins, directions, rays) if len(rows) == n else take_rays(rows, origins, directions, rays)
             t2, gid2, face2, unit2 = dynamic.first_hits(*sub, normals)
             closer = np.flatnonzero(t2 < t[rows])
             at = rows[closer]
-            t[at], part[at], face[at] = t2[closer], self._owner(self.dynamic_index)[gid2[closer]], face2[closer]
+            t[at], part[at], face[at] = t2[closer], self._owner(static=False)[gid2[closer]], face2[closer]
             if normals:
                 unit[at] = unit2[closer]
         return t, part, face, unit
 
-    def _owner(self, index: list[int]) -> np.ndarray:
-        """(G + 1,) the part index of each geometry id of the structure over ``index``, then -1
-        (a miss's id -1 reads the last)."""
-        return np.asarray(self._geometry_to_part(index) + [-1], dtype=np.int64)
+    def _owner(self, static: bool) -> np.ndarray:
+        """(G + 1,) the part index of each geometry id of the static (or the dynamic) structure,
+        then -1 (a miss's id -1 reads the last)."""
+        if self._owners is None:
+            self._owners = {kind: np.asarray(self._geometry_to_part(index) + [-1], dtype=np.int64)
+                            for kind, index in ((True, self.static_index), (False, self.dynamic_index))}
+        return self._owners[static]
 
     def _dynamic_reach(self, origins: np.ndarray) -> float:
         """A distance (metres) within which no moving part lies from any of ``origins``: the gap
         between the origins' box and the nearest moving part's box, less a millimetre and
         1e-4 of it (the float32 triangles' round-off); 0 when they touch."""
         bounds = self.world_bounds()[self.dynamic_index]
-        lo = np.array([origins[:, k].min() for k in range(3)])  # by column: numpy's axis-0 reduction of
-        hi = np.array([origins[:, k].max() for k in range(3)])  # (N, 3) is 25 times slower
+        from .exact_kernels import box_of
+        lo, hi = box_of(origins)
         gap = np.maximum(0.0, np.maximum(bounds[:, 0] - hi, lo - bounds[:, 1]))
         valid = np.all(bounds[:, 0] <= bounds[:, 1], axis=1)  # parts with vertices
         if not valid.any():

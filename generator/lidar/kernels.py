@@ -48,3 +48,20 @@ def return_points(rows: np.ndarray, origin: np.ndarray, direction: np.ndarray, s
             xyz[j, k] = sensor_directions[i, k] * m
             frozen[j, k] = ((w0 * to_sensor[k, 0] + w1 * to_sensor[k, 1]) + w2 * to_sensor[k, 2]) + to_sensor[k, 3]
             surface[j, k] = ((s0 * to_sensor[k, 0] + s1 * to_sensor[k, 1]) + s2 * to_sensor[k, 2]) + to_sensor[k, 3]
+
+
+@numba.njit(cache=True, nogil=True)
+def glass_hits(part: np.ndarray, face: np.ndarray, first_face: np.ndarray, transparent: np.ndarray) -> np.ndarray:
+    """The beams (int64, in order) whose hit (``part[i]`` (-1: none), ``face[i]``) is a glass
+    face: ``transparent[first_face[part] + face]``."""
+    count = 0
+    for i in range(part.shape[0]):
+        if part[i] >= 0 and transparent[first_face[part[i]] + face[i]]:
+            count += 1
+    out = np.empty(count, dtype=np.int64)
+    count = 0
+    for i in range(part.shape[0]):
+        if part[i] >= 0 and transparent[first_face[part[i]] + face[i]]:
+            out[count] = i
+            count += 1
+    return out

@@ -15,7 +15,8 @@ range and ``tau`` the two-way transmission of the glass panes the beam passed th
   incidence angle must not pass ``max_incidence_deg`` (grazing beams drop); the measured
   range must lie in [range_min_m, range_max_m] (no return past the maximum range);
 - **range noise**: the measured range is r + N(0, sigma^2), sigma = ``range_noise_sigma_m``,
-  from the sweep's own random stream;
+  from the sweep's own random stream (one standard normal per beam that met a surface, in
+  beam order);
 - **glass**: a transparent face (clear glass) returns nothing; the beam passes through it,
   keeping :data:`GLASS_TRANSMISSION` of its power each way (a pane modelled as a thin box
   has two faces: 0.9 through the pane), and may return from what lies behind, through at
@@ -46,7 +47,8 @@ def returns(part: np.ndarray, face: np.ndarray, first_face: np.ndarray, reflecti
             intensity: np.ndarray) -> int:
     """The module's rules for every beam i (its hit: ``part[i]`` (-1: none), ``face[i]``,
     unit ``normal[i]`` (float32), ``range_m[i]``, glass faces crossed ``panes[i]``; its world
-    ``direction[i]``; its standard normal ``draws[i]``): writes the reported returns, in beam
+    ``direction[i]``; the k-th beam that met a surface, in beam order, has the standard normal
+    ``draws[k]``): writes the reported returns, in beam
     order, as rows (their beams), measured and exact ranges (float64) and intensity
     (float32), and returns their count. ``reflectivity`` is every part's faces' rho, part p's
     face f at ``first_face[p] + f``; ``rules`` = (sigma, detection threshold on the received
@@ -56,11 +58,13 @@ def returns(part: np.ndarray, face: np.ndarray, first_face: np.ndarray, reflecti
     n2 d2|: float64, in this order (numba keeps it: tests/test_visibility.py)."""
     sigma, threshold, cos_limit, range_min, range_max = rules[0], rules[1], rules[2], rules[3], rules[4]
     two_way = GLASS_TRANSMISSION * GLASS_TRANSMISSION
-    m = 0
+    m, k = 0, 0
     for i in range(part.shape[0]):
         p = part[i]
         if p < 0:
             continue
+        draw = draws[k]
+        k += 1
         cos_i = abs((np.float64(normal[i, 0]) * direction[i, 0] + np.float64(normal[i, 1]) * direction[i, 1])
                     + np.float64(normal[i, 2]) * direction[i, 2])
         tau = 1.0
@@ -68,7 +72,7 @@ def returns(part: np.ndarray, face: np.ndarray, first_face: np.ndarray, reflecti
             tau = tau * two_way
         value = min(max(reflectivity[first_face[p] + face[i]] * cos_i * tau, 0.0), 1.0)
         r = range_m[i]
-        noisy = r + sigma * draws[i]
+        noisy = r + sigma * draw
         if value / (r * r) >= threshold and range_min <= noisy <= range_max and cos_i >= cos_limit:
             rows[m], measured[m], exact[m], intensity[m] = i, noisy, r, np.float32(value)
             m += 1

@@ -103,7 +103,6 @@ class Scanner:
         objects = objects or {}
         beams = emission(sensor, index)
         n = len(beams.time)
-        draws = stream(self.seed, "lidar", sensor.name, index).standard_normal(n) if noise else np.zeros(n)
         mount = np.eye(4)
         mount[:3, :3] = body_from_sensor(sensor)
         origin, direction = _world_rays(body, mount, start_time_s, beams)
@@ -127,6 +126,8 @@ class Scanner:
                     hits.put(rows, self._cast(np.take(origin, rows, axis=0), np.take(direction, rows, axis=0)))
         reference = matmul_exact(body.at(start_time_s)[0], mount)
         frozen = _Freeze(which, placed, {i: track.at(start_time_s)[0] for i, track in objects.items()})
+        met = int(np.count_nonzero(hits.part >= 0))
+        draws = stream(self.seed, "lidar", sensor.name, index).standard_normal(met) if noise else np.zeros(met)
         scan, world, beam = self._scan(sensor, index, start_time_s, beams, draws, (origin, direction, hits),
                                        reference, frozen)
         return Sweep(scan, world, beam, bound, count)
@@ -135,7 +136,7 @@ class Scanner:
         """First opaque hits of the world rays (``origin``, ``direction``: (M, 3)), through up
         to MAX_GLASS_FACES glass faces."""
         hits = _Hits(*self.geometry.cast_faces(origin, direction), np.zeros(len(origin), dtype=np.int64))
-        live = np.flatnonzero(self._glass(hits.part, hits.face))  # beams whose first hit is a pane
+        live = kernels.glass_hits(hits.part, hits.face, self.first_face, self.transparent)  # first hit: a pane
         if len(live):
             hits.put(live, self._through_glass(np.take(origin, live, axis=0), np.take(direction, live, axis=0)))
         return hits
@@ -164,11 +165,6 @@ class Scanner:
         self._glass_split.opaque.set_matrices(placed)
         self._glass_split.glass.set_matrices(placed)
         return self._glass_split
-
-    def _glass(self, part: np.ndarray, face: np.ndarray) -> np.ndarray:
-        """(M,) bool: the hit face is a glass one (False for a miss)."""
-        met = part >= 0
-        return met & self.transparent[np.where(met, self.first_face[part] + face, 0)]
 
     def _scan(self, sensor, index, start_time_s, beams, draws, cast, reference: np.ndarray,
               frozen: "_Freeze") -> tuple[Scan, np.ndarray, np.ndarray]:
