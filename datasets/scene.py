@@ -20,7 +20,7 @@ from exporters.hdf5 import H5_ERRORS, DamagedFileError, access_error, damaged, r
 from exporters.jsonfile import read_checked_bytes
 from exporters.manifest import read_manifest, stage_count, timeline_stage
 from exporters.tracks import TrackReader
-from generator.batch.stereo import flown_kinds
+from generator.batch.rig import flown_kinds, rig_of_config
 
 SUPPORTED_VERSIONS = (FORMAT_VERSION,)
 
@@ -75,7 +75,7 @@ def seed_fields(manifest: dict, folder: Path) -> tuple[int, list[str]]:
                            f"{', '.join(SUPPORTED_VERSIONS)} ({VERSION_REMEDY})")
     try:
         config = manifest["config"]
-        seed, kinds = int(manifest["seed"]), flown_kinds(config["trajectories"], float(config.get("stereo_baseline_m", 0)))
+        seed, kinds = int(manifest["seed"]), flown_kinds(config["trajectories"], rig_of_config(config))
     except (KeyError, TypeError, ValueError):
         raise DatasetError(f"{folder / 'manifest.json'}: damaged manifest (no seed or trajectories); "
                            "regenerate this seed with python -m generator") from None

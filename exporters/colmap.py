@@ -111,11 +111,16 @@ class ColmapSink:
                              np.zeros(0, int), minlength=len(self.colors))
         keep = np.flatnonzero(counts >= 2)
         xyz = np.asarray(self.points, np.float64)[keep] if self.points is not None else np.zeros((0, 3))
-        write_ply(folder / POINTS_PLY, {"x": xyz[:, 0].astype(np.float32), "y": xyz[:, 1].astype(np.float32),
-                                        "z": xyz[:, 2].astype(np.float32), "red": self.colors[keep, 0],
-                                        "green": self.colors[keep, 1], "blue": self.colors[keep, 2]},
-                  comments=[f"{PLY_FORMAT_COMMENT} {FORMAT_VERSION}",
-                            "the COLMAP model's 3D points (sparse/0), world metres, colour from the display PNG"])
+        write_points_ply(folder / POINTS_PLY, xyz, self.colors[keep])
+
+
+def write_points_ply(path: str | Path, xyz: np.ndarray, colors: np.ndarray) -> None:
+    """``points3D.ply``: a COLMAP model's 3D points ``xyz`` (N, 3) world metres (float32 in the
+    file) with their ``colors`` (N, 3) uint8."""
+    write_ply(path, {"x": xyz[:, 0].astype(np.float32), "y": xyz[:, 1].astype(np.float32),
+                     "z": xyz[:, 2].astype(np.float32), "red": colors[:, 0], "green": colors[:, 1], "blue": colors[:, 2]},
+              comments=[f"{PLY_FORMAT_COMMENT} {FORMAT_VERSION}",
+                        "the COLMAP model's 3D points (sparse/0), world metres, colour from the display PNG"])
 
 
 # ---- reading ---------------------------------------------------------------------------------

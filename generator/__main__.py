@@ -86,7 +86,7 @@ def _add_rerun_arguments(p) -> None:
 
 
 def _add_camera_arguments(p) -> None:
-    """The cameras' options: lens, image sensor, shutter and stereo pair (docs/cameras.md)."""
+    """The cameras' options: lens, image sensor, shutter, stereo pair and rig (docs/cameras.md)."""
     p.add_argument("--camera-model", choices=list(LENS_MODELS), default=DEFAULTS.camera_model,
                    help="the cameras' lens model: pinhole, opencv (radial-tangential) or fisheye (equidistant), "
                         "with OpenCV's definitions (default: pinhole; docs/cameras.md)")
@@ -109,6 +109,20 @@ def _add_camera_arguments(p) -> None:
                    help="a stereo pair: every trajectory also flown by a camera this many metres to the right "
                         "(0 to 1), in <kind>_right/; rectified, disparity = fx x baseline / depth (default: 0, "
                         "none; docs/cameras.md)")
+    p.add_argument("--rig", type=rig_file, default=DEFAULTS.rig, metavar="FILE",
+                   help="a camera rig (JSON: cameras with their names and 4x4 rig_from_camera): every trajectory "
+                        "also flown by each camera, in <kind>_<name>/, and the rig's joint COLMAP model and "
+                        "transforms.json in rigs/<kind>/ (default: none; docs/cameras.md)")
+
+
+def rig_file(text: str) -> dict:
+    """An argparse type: a rig file (generator/batch/rig.py), as the document the config stores."""
+    from .batch.rig import RigError, read_rig
+
+    try:
+        return read_rig(text).as_dict()
+    except RigError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -173,7 +187,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             building_type=args.building_type, context=args.context, season=args.season,
                             camera_model=args.camera_model, distortion=args.distortion,
                             exposure=args.exposure, sensor_noise=args.sensor_noise, jpeg_quality=args.jpeg_quality,
-                            shutter_s=args.shutter, stereo_baseline_m=args.stereo,
+                            shutter_s=args.shutter, stereo_baseline_m=args.stereo, rig=args.rig,
                             exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()

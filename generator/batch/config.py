@@ -27,7 +27,7 @@ MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may ge
 
 IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None,
                   "camera_model": "pinhole", "distortion": [], "exposure": "as-rendered", "sensor_noise": [],
-                  "jpeg_quality": None, "shutter_s": 0.0, "stereo_baseline_m": 0.0}  # config keys a manifest leaves out when they hold these values
+                  "jpeg_quality": None, "shutter_s": 0.0, "stereo_baseline_m": 0.0, "rig": None}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -67,6 +67,14 @@ class RunConfig:
     jpeg_quality: int | None = None
     shutter_s: float = 0.0  # motion blur: the shutter's time in seconds, centred on each frame (0: none)
     stereo_baseline_m: float = 0.0  # --stereo: a right camera this far right of each trajectory's (0: none)
+    rig: dict | None = None  # --rig: the rig file's document (generator/batch/rig.py); None: no rig
+
+    def camera_rig(self):
+        """The cameras flown with each trajectory's own (``--stereo`` or ``--rig``:
+        generator/batch/rig.py ``Rig``), None for none (ValueError in one line for a bad rig)."""
+        from .rig import rig_of
+
+        return rig_of(self.stereo_baseline_m, self.rig)
 
     def image_sensor(self) -> ImageSensor:
         """The cameras' image sensor (ValueError in one line for values it cannot have)."""
@@ -101,6 +109,10 @@ class RunConfig:
         if self.stereo_baseline_m > 0 and (self.camera_model != "pinhole" or self.phases > 1):
             raise ValueError("--stereo makes a rectified pinhole pair of a one-stage run: leave out "
                              + ("--camera-model" if self.camera_model != "pinhole" else "--phases"))
+        if self.rig is not None and (self.stereo_baseline_m > 0 or self.phases > 1):
+            raise ValueError("--rig flies its cameras in a one-stage run, without --stereo (a stereo pair is a rig "
+                             "camera named right): leave out " + ("--stereo" if self.stereo_baseline_m > 0 else "--phases"))
+        self.camera_rig()
         lens = self.lens()
         lens.check(site_intrinsics(w, h).K, w, h)  # one-to-one over the image of the sites' camera
         if self.phases > 1 and self.outputs and not {"depth", "instance"} <= set(self.outputs):

@@ -34,7 +34,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     from .. import Simulator
     from ..scene import build_site
     from .config import RunConfig, check_point_budget, plan_trajectories, run_timing
-    from .stereo import with_right_cameras
+    from .rig import with_rig_cameras
 
     cfg = RunConfig.from_dict(config).validated()
     if cfg.phases > 1:  # a timeline of the site: phase_K/ folders and changes.h5 (docs/phases.md)
@@ -54,11 +54,17 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     # every trajectory planned before the first frame is rendered: one that cannot be planned
     # (too many frames for the site: docs/trajectories.md) fails the seed in seconds
     planned = plan_trajectories(sim, cfg.trajectories, start, seed, cfg.frames, fps=10.0)
-    planned = with_right_cameras(planned, cfg.stereo_baseline_m)  # --stereo: each one's right camera too
+    references = [kind for kind, _ in planned]
+    rig = cfg.camera_rig()
+    planned = with_rig_cameras(planned, rig)  # --stereo, --rig: each one's rig cameras too
     plan = site.plan
     emit(event="start", frames=cfg.frames * len(planned), points=sim.num_points)
     summary = {"trajectories": {}, "render_device": sim.render_device}
     summary["trajectories"], tracks = fly_scene(sim, planned, folder, seed, plan, cfg, lambda: emit(event="frame"))
+    if rig is not None:  # the rig's joint COLMAP model and transforms.json, from what its cameras wrote
+        from exporters.colmap_rig import write_rig_models
+
+        write_rig_models(folder, references, rig, text=bool(cfg.exports.get("colmap_text")))
     summary |= {"frames": cfg.frames * len(planned), "points": sim.num_points, "visible_tracks": tracks}
     versions = {"buildee-sites": _version(), "bpy": session.bpy.app.version_string, "numpy": np.__version__}
     from exporters import FORMAT_VERSION
