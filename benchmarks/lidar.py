@@ -73,7 +73,7 @@ def main() -> None:
     from render import medium_site
 
     from generator.geometry.raycast import SceneGeometry
-    from generator.lidar.motion import MotionTrack
+    from generator.geometry.motion import MotionTrack
     from generator.lidar.scanner import Scanner
     from generator.lidar.sensors import emission, lidar
 

@@ -198,6 +198,9 @@ class Sequence:
         # what the camera's sensor did to rgb (generator/image_sensor.py; ideal by default) and
         # its linear gain per frame (exposure)
         self.image_sensor, self.exposure_gain = self._frames.image_sensor, self._frames.exposure_gain
+        # seconds from the first row's time to the last's (0: a global shutter; docs/cameras.md):
+        # row r shows the scene at timestamps[t] + ((r + 1) / height - 1/2) x readout_s
+        self.readout_s = self._frames.readout_s
         if (self._frames.width, self._frames.height) != (self.width, self.height):
             raise DatasetError(f"{folder / 'frames.json'}: frames of {self._frames.width}x{self._frames.height} "
                                f"pixels, cameras of {self.width}x{self.height}; regenerate this seed with python -m generator")

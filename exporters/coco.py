@@ -111,7 +111,7 @@ class CocoWriter:
                 "id": len(self.annotations) + 1, "image_id": frame.index + 1, "category_id": category_id(row["label_id"]),
                 "segmentation": rle, "area": int(counts[k]), "bbox": _xywh(tight[k].tolist()), "iscrowd": 0,
                 "instance_id": int(iid), "object": row["object"]}
-            if ctx.lens.ideal:  # the exact box assumes straight edges: not written through a distorting lens
+            if ctx.lens.ideal and ctx.rolling is None:  # the exact box assumes straight edges and one pose
                 amodal = amodal_box(rows_times(part.vertices, m[:3, :3].T) + m[:3, 3], part.faces,
                                     frame.world_from_camera, ctx.K, ctx.width, ctx.height, self.used[iid], near=self.near)
                 annotation["amodal_bbox"] = _xywh(amodal if amodal is not None else tight[k].tolist())

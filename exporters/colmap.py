@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from generator.cli_args import Option
-from generator.geometry.camera import invert_rigid, project
+from generator.geometry.camera import invert_rigid
 from generator.geometry.lens import PINHOLE, Lens
 
 from . import FORMAT_VERSION
@@ -90,7 +90,11 @@ class ColmapSink:
     def add_frame(self, frame: FrameRecord) -> None:
         c = self.context
         seen = np.flatnonzero(frame.visible & self.static)
-        uv, _ = project(frame.points[seen], frame.world_from_camera, c.K, c.lens)
+        uv, _ = c.project_points(frame.index, seen, frame.points[seen])  # through the lens (and rolling shutter)
+        # a rolling shutter may place a point seen at the frame's time outside the image (or find no row that sees it)
+        with np.errstate(invalid="ignore"):
+            placed = (uv[:, 0] >= 0) & (uv[:, 0] <= c.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= c.height)
+        seen, uv = seen[placed], uv[placed]
         self.observations.append((seen, uv))
         if "rgb" in frame.outputs:
             new = ~self.coloured[seen]

@@ -118,6 +118,7 @@ class FramesSink:
         self.sensitivity = context.options.get("segmentation_sensitivity")
         self.image_sensor, self.gains = context.image_sensor, {}
         self.shutter_s = float(context.options.get("shutter_s", 0.0))
+        self.rolling = context.rolling.shutter if context.rolling is not None else None
 
     def add_frame(self, frame: FrameRecord) -> None:
         i = frame.index
@@ -143,6 +144,12 @@ class FramesSink:
             doc["shutter"] = {"seconds": self.shutter_s, "meaning": "rgb and rgb_linear are exposed from t - seconds/2 "
                               "to t + seconds/2 around each frame's time t (the camera and the machines moving: "
                               "motion blur); every other modality is of the frame's time t (docs/cameras.md)"}
+        if self.rolling is not None:
+            doc["rolling_shutter"] = self.rolling.as_dict() | {
+                "meaning": "row r of every image (rgb, rgb_linear, depth, labels, ids, normals, flow) shows the scene "
+                           "at its row time: the camera at its pose then (the trajectory interpolated between frames), "
+                           "the machines where they stood (within 5 mm); flow, tracks and COLMAP keypoints place a "
+                           "point at the row that sees it; poses are those of the frame time (docs/cameras.md)"}
         if not self.image_sensor.ideal:
             doc["image_sensor"] = self.image_sensor.as_dict() | {
                 "exposure_gain": [self.gains.get(i, 1.0) for i in range(self.frames)],
@@ -186,6 +193,8 @@ class FrameReader:
             self.K = None if camera is None else np.asarray(camera["K"], np.float64)
             self.lens = PINHOLE if camera is None else Lens.from_dict(camera["lens"])
             self.shutter_s = float(doc.get("shutter", {}).get("seconds", 0.0))  # written with motion blur (#41)
+            # seconds from the first row's time to the last's (0: a global shutter; #41)
+            self.readout_s = float(doc.get("rolling_shutter", {}).get("readout_s", 0.0))
             sensor = doc.get("image_sensor")  # written when the sensor changes rgb (#41)
             self.image_sensor = IDEAL if sensor is None else ImageSensor.from_dict(sensor)
             self.exposure_gain = np.ones(self.frames) if sensor is None else np.asarray(sensor["exposure_gain"],

@@ -8,7 +8,7 @@ the body with its mount's rotation. A spinning or rosette sensor sweeps at its r
 trajectory's first frame (sweep k starts at k / rate_hz seconds) for as long as the
 trajectory lasts; a terrestrial scanner (kind ``dome``) scans from :data:`STATIONS` stations,
 the camera's place at evenly spaced frames, standing still while it scans. The site's
-machines move during a sweep as they do in the frames (generator/lidar/motion.py). Every file
+machines move during a sweep as they do in the frames (generator/geometry/motion.py). Every file
 lands in the seed's manifest with the rest."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import argparse
 import numpy as np
 
 from generator.cli_args import Option
-from generator.lidar.motion import MotionTrack, body_pose
+from generator.geometry.motion import MotionTrack, body_pose
 from generator.lidar.scanner import Scanner
 from generator.lidar.sensors import PRESETS, lidar
 

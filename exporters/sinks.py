@@ -46,6 +46,8 @@ class TrajectoryContext:
     object_matrices (T, D, 4, 4): world_from_object of ``dynamic_objects`` at every frame.
     clip: (near, far) planar depth limits of the rendered surfaces, metres.
     scene_bounds (2, 3): world axis-aligned bounds (min, max) of every part over all frames.
+    rolling: the rolling shutter's rows and motion (None: a global shutter); sinks place points
+    in the image with :meth:`project_points`.
     """
 
     folder: Path
@@ -68,6 +70,20 @@ class TrajectoryContext:
     scene_bounds: np.ndarray | None = None
     lens: Lens = PINHOLE
     image_sensor: ImageSensor = IDEAL
+    rolling: object | None = None  # a rolling shutter's generator.geometry.rolling.RollingCamera (None: global)
+
+    def project_points(self, index: int, ids: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where the points ``ids`` of the point table (their world positions ``world`` at frame
+        ``index``'s time) land in frame ``index``'s image: (pixels (n, 2) as (x, y), planar
+        depth (n,)), through the lens, and through the rolling shutter when there is one (each
+        point at the time its row is read: generator/geometry/rolling.py)."""
+        from generator.geometry.camera import project
+
+        if self.rolling is None:
+            return project(world, self.poses[index], self.K, self.lens)
+        table = self.point_table
+        return self.rolling.project(index, np.asarray(table["local"])[ids], np.asarray(table["dynamic_object"])[ids],
+                                    self.K, self.lens)
 
 
 @dataclass

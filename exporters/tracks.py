@@ -93,8 +93,12 @@ class TrackWriter:
     TAP-Vid query subset."""
 
     def __init__(self, path: str | Path, table: dict, dynamic_names: list[str], labels: list[str],
-                 K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0, lens: Lens = PINHOLE):
+                 K: np.ndarray, width: int, height: int, queries: int = 256, seed: int = 0, lens: Lens = PINHOLE,
+                 projector=None):
         self.path = Path(path)
+        # projector(t, ids, world) -> (xy, depth): where points land in frame t's image (default:
+        # through K and the lens at the frame's pose; a rolling shutter's: TrajectoryContext.project_points)
+        self.projector = projector
         self.f = create_file(self.path)  # checksummed: a flipped byte fails on read (exporters/hdf5.py)
         self.table, self.queries, self.seed = table, queries, seed
         self.K, self.width, self.height, self.lens = np.asarray(K, float), int(width), int(height), lens
@@ -138,7 +142,10 @@ class TrackWriter:
         _append(f["cameras/world_from_camera"], world_from_camera[None])
         _append(f["cameras/timestamps"], [timestamp])
         idx = np.flatnonzero(visible).astype(np.int32)
-        xy, z = project(world_points[idx], world_from_camera, self.K, self.lens)
+        if self.projector is not None:
+            xy, z = self.projector(len(f["cameras/timestamps"]) - 1, idx, world_points[idx])
+        else:
+            xy, z = project(world_points[idx], world_from_camera, self.K, self.lens)
         _append(f["visibility/index"], idx)
         _append(f["visibility/xy"], xy.astype(np.float32))
         _append(f["visibility/depth"], z.astype(np.float32))
@@ -161,7 +168,10 @@ class TrackWriter:
         tracks, occluded, tracks_3d = np.zeros((len(ids), T, 2)), np.ones((len(ids), T), bool), np.zeros((len(ids), T, 3))
         for t in range(T):
             pos = world_positions(data, t, ids)
-            tracks[:, t], _ = project(pos, data["world_from_camera"][t], data["K"], self.lens)
+            if self.projector is not None:
+                tracks[:, t], _ = self.projector(t, ids, pos)
+            else:
+                tracks[:, t], _ = project(pos, data["world_from_camera"][t], data["K"], self.lens)
             tracks_3d[:, t] = pos
             vis_t = data["index"][data["offsets"][t]:data["offsets"][t + 1]]
             occluded[:, t] = ~np.isin(ids, vis_t)
@@ -185,7 +195,8 @@ class TracksSink:
 
     def __init__(self, c: TrajectoryContext):
         self.writer = TrackWriter(Path(c.folder) / "tracks.h5", c.point_table, c.dynamic_objects, c.labels, c.K,
-                                  c.width, c.height, seed=c.seed, lens=c.lens)
+                                  c.width, c.height, seed=c.seed, lens=c.lens,
+                                  projector=c.project_points if c.rolling is not None else None)
 
     def add_frame(self, frame: FrameRecord) -> None:
         self.writer.add_frame(frame.timestamp, frame.world_from_camera, frame.points, frame.visible,

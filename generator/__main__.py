@@ -105,6 +105,11 @@ def _add_camera_arguments(p) -> None:
                    help="motion blur: the shutter's time in seconds, 0 to 0.1 (one frame), centred on each frame; "
                         "the colour is blurred by the camera's and the machines' motion, the ground truth stays "
                         "that of the frame's time (default: 0, none; docs/cameras.md)")
+    p.add_argument("--rolling-shutter", type=positive_float(zero=True), default=DEFAULTS.readout_s, metavar="SECONDS",
+                   dest="readout_s",
+                   help="a rolling shutter reading the rows top to bottom over this many seconds, 0 to 0.1: every "
+                        "row's colour and ground truth at its own time (default: 0, a global shutter; "
+                        "docs/cameras.md)")
     p.add_argument("--stereo", type=positive_float(zero=True), default=DEFAULTS.stereo_baseline_m, metavar="METRES",
                    help="a stereo pair: every trajectory also flown by a camera this many metres to the right "
                         "(0 to 1), in <kind>_right/; rectified, disparity = fx x baseline / depth (default: 0, "
@@ -187,7 +192,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                             building_type=args.building_type, context=args.context, season=args.season,
                             camera_model=args.camera_model, distortion=args.distortion,
                             exposure=args.exposure, sensor_noise=args.sensor_noise, jpeg_quality=args.jpeg_quality,
-                            shutter_s=args.shutter, stereo_baseline_m=args.stereo, rig=args.rig,
+                            shutter_s=args.shutter, readout_s=args.readout_s, stereo_baseline_m=args.stereo, rig=args.rig,
                             exports={o.dest: getattr(args, o.dest) for o in export_options()})
     try:
         args.config.validated()

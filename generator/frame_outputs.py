@@ -33,6 +33,11 @@ def pixel_geometry(sim, poses: np.ndarray | None = None, object_matrices: np.nda
     poses, object_matrices, index = check_trajectory(poses, object_matrices, index, len(sim.dynamic_objects))
     if not np.allclose(poses[index], sim.get_world_from_camera(), atol=1e-9):
         raise ValueError(f"poses[{index}] is not the Simulator's current pose")
+    if sim.readout_s > 0:  # a rolling shutter: each row at its own time (generator/geometry/rolling.py)
+        hits, camera, row_poses, row_objects, _ = sim.rolling_geometry(poses, object_matrices, index)
+        return PixelGeometry(sim.K, sim.width, sim.height, index, poses, hits.depth, hits.part, hits.normal,
+                             dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices, sim.lens,
+                             rolling=(camera, row_poses, row_objects))
     g = sim.render_geometry(normals=True)
     return PixelGeometry(sim.K, sim.width, sim.height, index, poses, g.depth, g.instance, g.normal,
                          dynamic_slots(sim.object_names, sim.dynamic_objects), object_matrices, sim.lens)
@@ -69,6 +74,11 @@ def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int
         poses, object_matrices, index = check_trajectory(poses, object_matrices, index, len(sim.dynamic_objects))
     computed = [n for n in names if MODALITIES[n].source == "geometry"]
     rendered = [n for n in names if MODALITIES[n].source == "render"]
+    if sim.readout_s > 0 and (poses is None or len(poses) < 2):
+        raise ValueError("a rolling shutter renders views along a trajectory: give poses and object_matrices of at "
+                         "least two frames")
+    if sim.readout_s > 0 and rendered and not computed:
+        sim.rolling_geometry(poses, object_matrices, index, normals=False)  # the render's depth, labels, ids
     # the pixel-centre cast first: render()'s depth, labels and ids reuse it (same pose and frame)
     g = pixel_geometry(sim, poses, object_matrices, index) if computed else None
     if rendered:

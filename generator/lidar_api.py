@@ -2,7 +2,7 @@
 mixin, bpy-free; docs/lidar.md).
 
 The sensor rides on the camera's body (its centre, heading along its view turned level:
-generator/lidar/motion.py ``body_pose``) with its mount; the scene holds still at the
+generator/geometry/motion.py ``body_pose``) with its mount; the scene holds still at the
 Simulator's current frame (a Simulator shows one frame at a time: the batch job's
 ``--lidar`` sweeps through the animation, with the machines moving during each sweep).
 """
@@ -25,7 +25,7 @@ class LidarScans:
         ``index`` picks the sweep's noise stream (and a rosette's part of its pattern);
         ``noise=False`` gives exact ranges. Label ids are ``labels``' and object ids
         ``object_names``' (as ``render()``'s)."""
-        from .lidar.motion import MotionTrack, body_pose
+        from .geometry.motion import MotionTrack, body_pose
         from .lidar.sensors import Lidar, lidar
 
         if not isinstance(sensor, Lidar):

@@ -456,6 +456,7 @@ class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, Shutters, PaperAP
         if engine is not None:
             raise ValueError(f"engine must be None (the scene's Blender engine) or 'raycast', got {engine!r}")
         self._check_current()
+        self._check_rolling_view()
         out = self._views.render(self._camera_model(), self._world_from_camera, self.frame,
                                  self.segmentation_sensitivity, self.ground_truth, outputs)
         self.last_render_timings = dict(self._views.last_timings)

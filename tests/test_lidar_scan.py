@@ -12,7 +12,7 @@ import pytest
 from generator.geometry.parts import MeshPart
 from generator.geometry.raycast import SceneGeometry
 from generator.lidar import physics
-from generator.lidar.motion import MotionTrack
+from generator.geometry.motion import MotionTrack
 from generator.lidar.scanner import Scanner
 from generator.lidar.sensors import lidar
 

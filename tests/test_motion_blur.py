@@ -22,12 +22,11 @@ def sharpness(rgb: np.ndarray) -> float:
     return float(np.abs(cv2.Sobel(cv2.GaussianBlur(y, (0, 0), 1.5), cv2.CV_32F, 1, 0)).mean())
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    sim = Simulator(animated_scene(tmp_path_factory.mktemp("blur") / "scene.blend"), points_density=2,
-                    render_preset="preview")
-    sim.configure_render(samples=16, denoise=False)
-    eyes = [(-5.0 + 3.0 * t, -12.0, 3.0) for t in range(T)]  # 3 m a frame, sideways
+def flight(sim):
+    """Three frames flown sideways at 3 m a frame, looking at the wall and the truck; the
+    Simulator at the middle one. Returns the poses (T, 4, 4) and the truck's matrices
+    (T, D, 4, 4)."""
+    eyes = [(-5.0 + 3.0 * t, -12.0, 3.0) for t in range(T)]
     poses = np.stack([look_at(e, (-5.0 + 3.0 * t, 0.0, 1.0)) for t, e in enumerate(eyes)])
     matrices = []
     for t in range(T):
@@ -35,10 +34,19 @@ def renders(tmp_path_factory):
         matrices.append(sim.dynamic_object_matrices())
     sim.set_frame(2)
     sim.set_world_from_camera(poses[1], check_collisions=False)
+    return poses, np.stack(matrices)
+
+
+@pytest.fixture(scope="module")
+def renders(tmp_path_factory):
+    sim = Simulator(animated_scene(tmp_path_factory.mktemp("blur") / "scene.blend"), points_density=2,
+                    render_preset="preview")
+    sim.configure_render(samples=16, denoise=False)
+    poses, matrices = flight(sim)
     names = ["rgb", "rgb_linear", "depth", "label", "instance"]
-    sharp = sim.render_outputs(names, poses, np.stack(matrices), 1)
+    sharp = sim.render_outputs(names, poses, matrices, 1)
     sim.set_shutter(1.0 / sim.fps)  # a whole frame interval
-    blurred = sim.render_outputs(names, poses, np.stack(matrices), 1)
+    blurred = sim.render_outputs(names, poses, matrices, 1)
     camera = bpy.context.scene.camera
     left = (world_from_camera_from_blender(np.array(camera.matrix_world)), camera.animation_data)
     objects_only = sim.render()  # no trajectory given: only the truck moves during the exposure

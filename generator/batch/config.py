@@ -27,7 +27,7 @@ MIN_POINTS = 100  # fewest surface or scoring points a site of the preset may ge
 
 IMPLIED_CONFIG = {"phases": 1, "weather": None, "ground": None, "building_type": None, "context": None, "season": None,
                   "camera_model": "pinhole", "distortion": [], "exposure": "as-rendered", "sensor_noise": [],
-                  "jpeg_quality": None, "shutter_s": 0.0, "stereo_baseline_m": 0.0, "rig": None}  # config keys a manifest leaves out when they hold these values
+                  "jpeg_quality": None, "shutter_s": 0.0, "stereo_baseline_m": 0.0, "rig": None, "readout_s": 0.0}  # config keys a manifest leaves out when they hold these values
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,7 @@ class RunConfig:
     sensor_noise: tuple[float, ...] = ()
     jpeg_quality: int | None = None
     shutter_s: float = 0.0  # motion blur: the shutter's time in seconds, centred on each frame (0: none)
+    readout_s: float = 0.0  # --rolling-shutter: seconds from the first row's time to the last's (0: a global shutter)
     stereo_baseline_m: float = 0.0  # --stereo: a right camera this far right of each trajectory's (0: none)
     rig: dict | None = None  # --rig: the rig file's document (generator/batch/rig.py); None: no rig
 
@@ -105,6 +106,10 @@ class RunConfig:
         check_season(self.season)
         self.image_sensor()
         check_number("--shutter", self.shutter_s, 0.0, 0.1)  # one frame interval at the sites' 10 fps
+        check_number("--rolling-shutter", self.readout_s, 0.0, 0.1)
+        if self.readout_s > 0 and (self.rig is not None or self.stereo_baseline_m > 0):
+            raise ValueError("--rolling-shutter flies one camera per trajectory (a rig's joint COLMAP model has one "
+                             "pose per frame): leave out " + ("--rig" if self.rig is not None else "--stereo"))
         check_number("--stereo", self.stereo_baseline_m, 0.0, 1.0)
         if self.stereo_baseline_m > 0 and (self.camera_model != "pinhole" or self.phases > 1):
             raise ValueError("--stereo makes a rectified pinhole pair of a one-stage run: leave out "

@@ -26,6 +26,16 @@ def object_matrices_over(sim, frames: int) -> np.ndarray:
     return np.stack(out) if out else np.zeros((0, 0, 4, 4))
 
 
+def rolling_camera(sim, poses: np.ndarray, matrices: np.ndarray):
+    """The trajectory's rows and motion through the Simulator's rolling shutter (frame k at
+    k / fps seconds, as ``Simulator.rolling_geometry`` takes them), None without one."""
+    if sim.readout_s == 0:
+        return None
+    from ..geometry.rolling import RollingCamera, RollingShutter
+
+    return RollingCamera(RollingShutter(sim.readout_s, sim.height), np.arange(len(poses)) / sim.fps, poses, matrices)
+
+
 def scene_bounds(parts, object_matrices: np.ndarray, dynamic_objects: list[str]) -> np.ndarray:
     """(2, 3) world bounds of every part at every frame (dynamic parts moved)."""
     slot = {name: k for k, name in enumerate(dynamic_objects)}
@@ -69,9 +79,10 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         modalities=names, object_matrices=matrices,
         options=export_values(exports or {}) | {"plan": plan, "ground_truth": sim.ground_truth,
                                                 "segmentation_sensitivity": float(sim.segmentation_sensitivity),
-                                                "shutter_s": float(sim.shutter_s)},
+                                                "shutter_s": float(sim.shutter_s), "readout_s": float(sim.readout_s)},
         clip=(float(sim.clip_start), float(sim.clip_end)),
-        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens, image_sensor=sim.image_sensor)
+        scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens, image_sensor=sim.image_sensor,
+        rolling=rolling_camera(sim, np.asarray(traj.poses), matrices))
     sinks = [factory(context) for factory in load_sinks().values()]
     sim.reset_observations()
     coverage, tracks = [], 0

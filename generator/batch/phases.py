@@ -94,7 +94,7 @@ def run_phases(cfg, seed: int, folder: Path, emit, executor: str = "") -> dict:
         sim.configure_render(resolution=cfg.resolution, device=cfg.device)
         sim.set_lens(cfg.camera_model, cfg.lens().coefficients)
         sim.image_sensor = cfg.image_sensor()  # exposure, noise, JPEG of the display colour
-        sim.set_shutter(cfg.shutter_s)  # motion blur (0: none)
+        sim.set_shutter(cfg.shutter_s, cfg.readout_s)  # motion blur, rolling shutter (0: none)
         per_kind, visible = fly_scene(sim, trajectories.items(), out, seed, plans[k], cfg, lambda: emit(event="frame"))
         tracks += visible
         stage = {"points": sim.num_points, "trajectories": per_kind}

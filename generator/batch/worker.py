@@ -49,7 +49,7 @@ def run(config: dict, seed: int, folder: Path, executor: str = "") -> dict:
     sim.configure_render(resolution=cfg.resolution, device=cfg.device)
     sim.set_lens(cfg.camera_model, cfg.lens().coefficients)
     sim.image_sensor = cfg.image_sensor()  # exposure, noise, JPEG of the display colour
-    sim.set_shutter(cfg.shutter_s)  # motion blur (0: none)
+    sim.set_shutter(cfg.shutter_s, cfg.readout_s)  # motion blur, rolling shutter (0: none)
     start = sim.respawn_camera()
     # every trajectory planned before the first frame is rendered: one that cannot be planned
     # (too many frames for the site: docs/trajectories.md) fails the seed in seconds

@@ -16,14 +16,20 @@ from ..geometry.camera import blender_from_world_from_camera
 from .animation import object_fcurves
 
 
-def apply_shutter(seconds: float, fps: float) -> None:
-    """Open the shutter for ``seconds`` centred on each frame's time (0: no motion blur)."""
+def apply_shutter(seconds: float, fps: float, readout_s: float = 0.0) -> None:
+    """Open the shutter for ``seconds`` centred on each frame's time (0: no motion blur), with
+    a rolling shutter reading the rows top to bottom over ``readout_s`` (0: none). Cycles'
+    rolling shutter spreads the rows over ``(1 - duration)`` of the shutter window and
+    exposes each for ``duration`` of it: the window is seconds + readout_s and duration
+    seconds / (seconds + readout_s) (generator/geometry/rolling.py gives the rows' times)."""
     scene = bpy.context.scene
-    scene.render.use_motion_blur = seconds > 0
-    if seconds > 0:
-        scene.render.motion_blur_shutter = seconds * fps  # Blender counts it in frames
+    window = seconds + readout_s
+    scene.render.use_motion_blur = window > 0
+    if window > 0:
+        scene.render.motion_blur_shutter = window * fps  # Blender counts it in frames
         scene.render.motion_blur_position = "CENTER"
-        scene.cycles.rolling_shutter_type = "NONE"
+        scene.cycles.rolling_shutter_type = "TOP" if readout_s > 0 else "NONE"
+        scene.cycles.rolling_shutter_duration = seconds / window
 
 
 class CameraPath:

@@ -255,7 +255,11 @@ def project(points_world: np.ndarray, world_from_camera: np.ndarray, K: np.ndarr
     Points behind the camera get z <= 0 and meaningless pixel coordinates (NaN through a
     distorting lens).
     """
-    pc = world_to_camera(points_world, world_from_camera)
+    return project_camera_points(world_to_camera(points_world, world_from_camera), K, lens)
+
+
+def project_camera_points(pc: np.ndarray, K: np.ndarray, lens=None):
+    """:func:`project` of points (N, 3) already in OpenCV camera coordinates."""
     if lens is not None and not lens.ideal:
         return lens.project(K, pc)
     z = pc[:, 2]

@@ -74,9 +74,7 @@ class PixelTruth:
         OpenCV): depth (H, W) float32 planar metres (+inf: none), part (H, W) int64 (-1: none
         or a filtered object), normal (H, W, 3) camera frame or None without ``normals``.
         The arrays are shared with the next call at the same state: copy before changing."""
-        args = (camera.K, camera.width, camera.height, camera.clip_start, camera.clip_end, camera.lens)
-        if self._camera is None or not self._camera.matches(*args):
-            self._camera, self._hits = RayCamera(*args), None
+        self._ray_camera(camera)
         pose = np.asarray(world_from_camera, dtype=np.float64)
         key = (pose.tobytes(), self.geometry.version, self.occluders.version if self.occluders else 0)
         if self._hits is not None and self._key == key and (self._hits.normal is not None or not normals):
@@ -87,3 +85,47 @@ class PixelTruth:
         self._key, self._hits = key, hits
         return hits
 
+
+    def _ray_camera(self, camera: CameraModel) -> RayCamera:
+        """The pixel-centre rays of ``camera`` (made again when the camera changed)."""
+        args = (camera.K, camera.width, camera.height, camera.clip_start, camera.clip_end, camera.lens)
+        if self._camera is None or not self._camera.matches(*args):
+            self._camera, self._hits = RayCamera(*args), None
+        return self._camera
+
+    def rolling_hits(self, camera: CameraModel, rolling, index: int, part_of_object: list[int],
+                     normals: bool) -> tuple[PixelHits, np.ndarray, np.ndarray, float]:
+        """Frame ``index`` of a trajectory through a rolling shutter (``rolling``: a
+        generator/geometry/rolling.py ``RollingCamera``): every row cast from the camera's pose
+        at the row's time, the moving objects (object d is part ``part_of_object[d]``) placed
+        at the middle time of each band of rows (``rolling.slices``), then put back. Returns
+        (the hits as :meth:`hits`, row poses (H, 4, 4), every row's objects' matrices
+        (H, D, 4, 4), the bands' motion bound in metres). The answer is kept as the one of
+        the frame's pose: the render of this view reads it (:meth:`hold`)."""
+        rays = self._ray_camera(camera)
+        poses = rolling.row_poses(index)
+        bands, bound = rolling.slices(index)
+        rows_objects = np.zeros((camera.height, len(part_of_object), 4, 4))
+        kept = {i: self.geometry.parts[i].matrix.copy() for i in part_of_object}
+        pieces = []
+        try:
+            for first, end, middle in bands:
+                placed = rolling.objects_at(index, [middle])[0]
+                rows_objects[first:end] = placed
+                self.geometry.set_matrices({i: placed[d] for d, i in enumerate(part_of_object)})
+                hits = rays.cast_rows(self.geometry, poses[first:end], first, end, normals)
+                if self.occluders is not None:
+                    hits = nearer(hits, rays.cast_rows(self.occluders, poses[first:end], first, end, normals))
+                pieces.append(hits)
+        finally:
+            self.geometry.set_matrices(kept)
+        hits = PixelHits(np.concatenate([h.depth for h in pieces]), np.concatenate([h.part for h in pieces]),
+                         np.concatenate([h.normal for h in pieces]) if normals else None)
+        return hits, poses, rows_objects, bound
+
+    def hold(self, hits: PixelHits, world_from_camera: np.ndarray) -> None:
+        """Keep ``hits`` as the answer for the pose ``world_from_camera`` at the current state
+        (a rolling-shutter cast, which the render of that view reads)."""
+        pose = np.asarray(world_from_camera, dtype=np.float64)
+        self._key = (pose.tobytes(), self.geometry.version, self.occluders.version if self.occluders else 0)
+        self._hits = hits

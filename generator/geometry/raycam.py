@@ -82,19 +82,38 @@ class RayCamera:
         rot = pose[:3, :3]
         dirs = rows_times(self._rays, rot.T)  # world directions with unit camera-frame z: t = planar depth
         origins = pose[:3, 3] + self.clip_start * dirs  # the ray starts on the near clip plane
+        return self._hits(geometry, origins, dirs, lambda n: rows_times(n, rot), self._rays, normals)
+
+    def cast_rows(self, geometry: SceneGeometry, row_poses: np.ndarray, first: int, end: int,
+                  normals: bool = True) -> PixelHits:
+        """First hits of the pixel-centre rays of rows ``first`` to ``end`` - 1, row r's from
+        its own pose ``row_poses[r - first]`` (a rolling shutter: generator/geometry/rolling.py);
+        the (end - first, W) images of :meth:`cast`, planar depth in each row's camera."""
+        from .rolling import pixel_rows_times
+
+        poses = np.asarray(row_poses, dtype=np.float64)
+        rays = self._rays[first * self.width:end * self.width]
+        dirs = pixel_rows_times(rays, poses[:, :3, :3].transpose(0, 2, 1), self.width)
+        origins = np.repeat(poses[:, :3, 3], self.width, axis=0) + self.clip_start * dirs
+        to_camera = lambda n: pixel_rows_times(n, poses[:, :3, :3], self.width)  # noqa: E731
+        return self._hits(geometry, origins, dirs, to_camera, rays, normals, end - first)
+
+    def _hits(self, geometry, origins, dirs, to_camera, rays, normals: bool, rows: int | None = None) -> PixelHits:
+        """The images of a cast of the world rays (``origins``, ``dirs``) of ``rows`` rows
+        (default: all); ``to_camera`` turns world normals into the camera frame."""
         if normals:
             t, part, normal = geometry.cast_with_normals(origins, dirs)
         else:
             t, part = geometry.cast(origins, dirs)
         depth = t + self.clip_start
         hit = (part >= 0) & np.isfinite(t) & (depth <= self.clip_end)
-        h, w = self.height, self.width
+        h, w = self.height if rows is None else rows, self.width
         depth_img = np.where(hit, depth, np.inf).astype(np.float32).reshape(h, w)
         part_img = np.where(hit, part, -1).reshape(h, w)
         normal_img = None
         if normals:
-            n = rows_times(normal, rot)  # world -> camera frame
-            n *= np.where((n * self._rays).sum(axis=1) > 0, -1.0, 1.0)[:, None]  # face the camera
+            n = to_camera(normal)  # world -> camera frame
+            n *= np.where((n * rays).sum(axis=1) > 0, -1.0, 1.0)[:, None]  # face the camera
             normal_img = np.where(hit[:, None], n, 0.0).astype(np.float32).reshape(h, w, 3)
         return PixelHits(depth_img, part_img, normal_img)
 

@@ -4,7 +4,7 @@
 generator/geometry/raycast.py ``SceneGeometry``, static parts in one Embree structure, moving
 ones in another) with each part's class and object ids and its faces' optics.
 :meth:`Scanner.sweep` fires one sweep of a sensor (generator/lidar/sensors.py) carried by a
-body whose pose over time is a :class:`generator.lidar.motion.MotionTrack`:
+body whose pose over time is a :class:`generator.geometry.motion.MotionTrack`:
 
 1. every beam leaves from the sensor's pose at its own firing time (the body's pose then,
    times the mount's rotation);
@@ -28,7 +28,7 @@ from ..geometry.raycast import SceneGeometry
 from ..geometry.structure import near_edge_tol
 from ..geometry.seeding import stream
 from . import kernels, physics
-from .motion import MotionTrack
+from ..geometry.motion import MotionTrack
 from .returns import Scan
 from .sensors import body_from_sensor, emission
 

@@ -1,5 +1,6 @@
 """Rigid motion between a trajectory's frames, at any time (bpy-free): the sensor's pose and
-every moving object's matrix at the instant a beam is fired (docs/lidar.md, "Motion").
+every moving object's matrix at the instant a beam is fired (docs/lidar.md, "Motion") or a
+rolling shutter reads a row (generator/geometry/rolling.py).
 
 The trajectory knows each pose at its frames' timestamps. Between two frames a pose moves
 at a constant velocity: its translation linearly, its rotation about one fixed axis at a
@@ -17,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.camera import matmul_exact
-from ..geometry.portable_math import atan2, sincos
+from .camera import matmul_exact
+from .portable_math import atan2, sincos
 
 
 def quaternion(rotation: np.ndarray) -> np.ndarray:
