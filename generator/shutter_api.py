@@ -61,9 +61,16 @@ class Shutters:
             raise ValueError(f"poses[{index}] is not the Simulator's current pose")
         slots = dynamic_slots(self.object_names, self.dynamic_objects)
         part_of_object = [int(np.flatnonzero(slots == d)[0]) for d in range(len(self.dynamic_objects))]
-        radius = [_radius(self._parts[i]) for i in part_of_object]
-        times = np.arange(len(poses), dtype=np.float64) / self.fps
-        camera = RollingCamera(RollingShutter(self.readout_s, self.height), times, poses, object_matrices, radius)
+        poses, object_matrices = np.asarray(poses, np.float64), np.asarray(object_matrices, np.float64)
+        key = (self.readout_s, self.height, self.fps, poses.tobytes(), object_matrices.tobytes())
+        cached = getattr(self, "_rolling_camera", None)
+        if cached is None or cached[0] != key:  # one per trajectory: its motion tracks are made once
+            radius = [_radius(self._parts[i]) for i in part_of_object]
+            times = np.arange(len(poses), dtype=np.float64) / self.fps
+            cached = (key, RollingCamera(RollingShutter(self.readout_s, self.height), times, poses, object_matrices,
+                                         radius))
+            self._rolling_camera = cached
+        camera = cached[1]
         truth = self._views.pixel_truth
         hits, row_poses, row_objects, bound = truth.rolling_hits(self._camera_model(), camera, index, part_of_object,
                                                                  normals)

@@ -108,9 +108,9 @@ class PixelTruth:
         rows_objects = np.zeros((camera.height, len(part_of_object), 4, 4))
         kept = {i: self.geometry.parts[i].matrix.copy() for i in part_of_object}
         pieces = []
+        placements = rolling.objects_at(index, [middle for _, _, middle in bands])  # (bands, D, 4, 4)
         try:
-            for first, end, middle in bands:
-                placed = rolling.objects_at(index, [middle])[0]
+            for (first, end, _), placed in zip(bands, placements):
                 rows_objects[first:end] = placed
                 self.geometry.set_matrices({i: placed[d] for d, i in enumerate(part_of_object)})
                 hits = rays.cast_rows(self.geometry, poses[first:end], first, end, normals)
