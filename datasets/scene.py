@@ -352,6 +352,26 @@ class Scene:
         """The labelled ground-truth cloud of this seed (:func:`read_point_cloud`)."""
         return read_point_cloud(self.path, static_only)
 
+    def disparity(self, camera: str, i: int) -> np.ndarray:
+        """Ground-truth disparity (H, W) float32 pixels of frame ``i`` of a rectified pair: the
+        left image is the reference trajectory's, the right one the rig camera ``camera`` (a
+        folder such as ``orbit_right``, whose extrinsics move it B metres along x: ``--stereo
+        B``). A surface point at planar depth Z in the left image is fx B / Z pixels further
+        left in the right one; 0 where the left pixel sees no surface (docs/cameras.md)."""
+        rig = rig_of_config(self.manifest["config"])
+        pairs = {} if rig is None else {f"{kind}_{name}": (kind, rig.baseline(k))
+                                        for kind in self.manifest["config"]["trajectories"]
+                                        for k, name in enumerate(rig.names)}
+        if pairs.get(camera, (None, None))[1] is None:
+            rectified = [c for c, (_, b) in pairs.items() if b is not None]
+            raise DatasetError(f"{camera!r} is not the right camera of a rectified pair in {self.path} (those are: "
+                               f"{', '.join(rectified) or 'none; make one with --stereo B'})")
+        kind, baseline = pairs[camera]
+        left = self[kind]
+        depth = np.asarray(left.read(i, ["depth"])["depth"], np.float64)
+        with np.errstate(divide="ignore"):
+            return np.where(np.isfinite(depth), left.K[0, 0] * baseline / depth, 0.0).astype(np.float32)
+
 
 class _Frames:
     """All frames of several sequences as one list (index or slice)."""

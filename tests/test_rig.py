@@ -91,6 +91,22 @@ def test_a_point_seen_by_both_cameras_is_on_the_same_row_fx_b_over_z_apart(seed)
 
 
 @pytest.mark.pipeline
+def test_the_disparity_map_is_fx_b_over_the_left_depth_and_only_for_the_rectified_camera(seed):
+    from datasets import DatasetError, Scene
+
+    scene = Scene(seed)
+    left = scene["orbit"]
+    for t in range(len(left)):
+        depth = left.read(t, ["depth"])["depth"].astype(np.float64)
+        disparity = scene.disparity("orbit_right", t)
+        seen = np.isfinite(depth)
+        assert disparity.dtype == np.float32 and seen.any() and np.all(disparity[~seen] == 0)
+        assert np.allclose(disparity[seen], left.K[0, 0] * BASELINE / depth[seen], rtol=1e-6)
+    with pytest.raises(DatasetError, match="orbit_right"):
+        scene.disparity("orbit_down", 0)
+
+
+@pytest.mark.pipeline
 def test_the_rig_colmap_model_holds_the_rig_its_frames_and_every_cameras_images(seed):
     import pycolmap
 
