@@ -7,7 +7,11 @@ job's orbit and flies its first ``--frames`` frames through the real trajectory 
 folder) at ``--resolution`` with the ``preview`` render preset on ``--device``. Measured per
 frame, with the loop's code untouched (its functions wrapped by this script):
 
-- ``wall_s_per_frame``: the loop's wall time (set-up of the sinks and their closing included);
+- ``wall_s_per_frame``: the loop's wall time (set-up of the sinks and their closing included)
+  as the batch job runs it on this device; ``wall_s_per_frame_sinks_in_the_loop``: the sinks
+  called between renders (the CPU's way; the first run, whose stages are the ones reported);
+  ``wall_s_per_frame_sinks_threaded``: the sinks writing in a thread of their own beside the
+  renderer (a GPU's way: generator/batch/overlap.py);
 - ``cycles_s_per_frame``: Cycles' path tracing, from Blender's ``render_stats`` messages: the
   wall time from a frame's first ``Sample`` message to its last (scene synchronisation,
   denoising, the compositor and Blender's own file output are outside it);
@@ -69,6 +73,10 @@ class Clock:
 
         setattr(owner, attr, timed)
 
+    def snapshot(self) -> tuple[dict, dict]:
+        """(CPU, wall) seconds by stage so far (copies)."""
+        return dict(self.cpu), dict(self.wall)
+
 
 class PathTracing:
     """Cycles' path tracing per render, from ``render_stats``: from the first ``Sample``
@@ -104,9 +112,28 @@ def main() -> None:
     ap.add_argument("--json", type=Path)
     ap.add_argument("--cache", type=Path, default=Path("/tmp/buildee-render-bench"))
     args = ap.parse_args()
-    from exporters.sinks import load_sinks
+    sim, traj = flight(args)
+    clock, tracing = instrument(sim)
+    cpu, wall = fly_once(sim, traj, args.seed, overlap=False)  # the stages, each in the loop's thread
+    stages, cycles = clock.snapshot(), (tracing.wall, tracing.cpu)
+    _, wall_overlapped = fly_once(sim, traj, args.seed, overlap=True)  # the way on a GPU
+    result = summary(args, sim, len(traj), (cpu, wall, wall_overlapped), cycles, stages)
+    print(f"{result['site']}, {result['frames']} frames at {args.resolution}, preview, {result['device']}")
+    for key in ("wall_s_per_frame", "wall_s_per_frame_sinks_in_the_loop", "wall_s_per_frame_sinks_threaded",
+                "cycles_s_per_frame",
+                "cycles_cpu_s_per_frame", "outside_cycles_cpu_s_per_frame"):
+        print(f"  {key:36} {result[key]:8.3f}")
+    print(f"  {'stage':36} {'cpu s/frame':>12} {'wall s/frame':>12}")
+    for k, v in result["stages"].items():
+        print(f"  {k:36} {v['cpu_s_per_frame']:12.3f} {v['wall_s_per_frame']:12.3f}")
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1))
+
+
+def flight(args):
+    """A Simulator of the site at the resolution, and the first ``--frames`` of its orbit
+    (one untimed render done: the first compiles and synchronises)."""
     from generator.batch.config import plan_trajectory
-    from generator.batch.fly import fly
     from generator.scene import build_site
     from trajectories import Trajectory
 
@@ -121,7 +148,14 @@ def main() -> None:
     traj = Trajectory(orbit.poses[:args.frames], orbit.timestamps[:args.frames], orbit.kind, [], dict(orbit.params))
     sim.set_frame(1)
     sim.set_world_from_camera(traj.poses[0], check_collisions=False)
-    sim.render()  # the first render compiles and synchronises: not timed
+    sim.render()
+    return sim, traj
+
+
+def instrument(sim) -> tuple[Clock, PathTracing]:
+    """The loop's stages wrapped in a :class:`Clock`, Cycles' path tracing followed."""
+    from exporters.sinks import load_sinks
+
     clock, tracing = Clock(), PathTracing()
     clock.wrap(sim, "render", "blender_render")
     clock.wrap(sim, "render_outputs", "render_outputs")
@@ -129,34 +163,40 @@ def main() -> None:
     for name, sink in load_sinks().items():
         clock.wrap(sink, "add_frame", f"sink_{name}_add_frame")
         clock.wrap(sink, "close", f"sink_{name}_close")
-    tracing.wall = tracing.cpu = 0.0
+    return clock, tracing
+
+
+def fly_once(sim, traj, seed: int, overlap: bool) -> tuple[float, float]:
+    """(process CPU, wall) seconds of the trajectory loop writing into a temporary folder."""
+    from generator.batch.fly import fly
+
     with tempfile.TemporaryDirectory(prefix="buildee-pipeline-") as tmp:
         c0, w0 = time.process_time(), time.perf_counter()
-        fly(sim, traj, Path(tmp) / "orbit", args.seed)
-        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-    n = len(traj)
-    clock.cpu["geometry_modalities"] = clock.cpu.pop("render_outputs") - clock.cpu["blender_render"]
-    clock.wall["geometry_modalities"] = clock.wall.pop("render_outputs") - clock.wall["blender_render"]
-    clock.cpu["blender_render"] -= tracing.cpu  # the render call outside Cycles' path tracing
-    clock.wall["blender_render"] -= tracing.wall
-    clock.cpu["cycles_path_tracing"], clock.wall["cycles_path_tracing"] = tracing.cpu, tracing.wall
-    counted = sum(clock.cpu.values())
-    clock.cpu["other"], clock.wall["other"] = cpu - counted, wall - sum(clock.wall.values())
-    result = {"device": f"{sim.render_device} ({args.device}); {_machine()}", "frames": n,
-              "resolution": [width, height], "site": f"{args.preset} seed {args.seed}",
-              "wall_s_per_frame": wall / n, "cycles_s_per_frame": tracing.wall / n,
-              "cycles_cpu_s_per_frame": tracing.cpu / n, "outside_cycles_cpu_s_per_frame": (cpu - tracing.cpu) / n,
-              "cpu_s_per_frame": cpu / n,
-              "stages": {k: {"cpu_s_per_frame": clock.cpu[k] / n, "wall_s_per_frame": clock.wall[k] / n}
-                         for k in sorted(clock.cpu, key=lambda k: -clock.cpu[k])}}
-    print(f"{result['site']}, {n} frames at {width}x{height}, preview, {result['device']}")
-    for key in ("wall_s_per_frame", "cycles_s_per_frame", "cycles_cpu_s_per_frame", "outside_cycles_cpu_s_per_frame"):
-        print(f"  {key:34} {result[key]:8.3f}")
-    print(f"  {'stage':34} {'cpu s/frame':>12} {'wall s/frame':>12}")
-    for k, v in result["stages"].items():
-        print(f"  {k:34} {v['cpu_s_per_frame']:12.3f} {v['wall_s_per_frame']:12.3f}")
-    if args.json:
-        args.json.write_text(json.dumps(result, indent=1))
+        fly(sim, traj, Path(tmp) / "orbit", seed, overlap=overlap)
+        return time.process_time() - c0, time.perf_counter() - w0
+
+
+def summary(args, sim, n: int, times, cycles, stages) -> dict:
+    """The JSON document: per-frame figures and the stages (CPU, wall) of the serial run."""
+    cpu, wall, wall_overlapped = times
+    tracing_wall, tracing_cpu = cycles
+    stage_cpu, stage_wall = stages
+    stage_cpu["geometry_modalities"] = stage_cpu.pop("render_outputs") - stage_cpu["blender_render"]
+    stage_wall["geometry_modalities"] = stage_wall.pop("render_outputs") - stage_wall["blender_render"]
+    stage_cpu["blender_render"] -= tracing_cpu  # the render call outside Cycles' path tracing
+    stage_wall["blender_render"] -= tracing_wall
+    stage_cpu["cycles_path_tracing"], stage_wall["cycles_path_tracing"] = tracing_cpu, tracing_wall
+    stage_cpu["other"] = cpu - sum(stage_cpu.values())
+    stage_wall["other"] = wall - sum(stage_wall.values())
+    width, height = (int(v) for v in args.resolution.split("x"))
+    return {"device": f"{sim.render_device} ({args.device}); {_machine()}", "frames": n,
+            "resolution": [width, height], "site": f"{args.preset} seed {args.seed}",
+            "wall_s_per_frame": (wall_overlapped if sim.render_device != "CPU" else wall) / n,
+            "wall_s_per_frame_sinks_in_the_loop": wall / n, "wall_s_per_frame_sinks_threaded": wall_overlapped / n,
+            "cycles_s_per_frame": tracing_wall / n, "cycles_cpu_s_per_frame": tracing_cpu / n,
+            "outside_cycles_cpu_s_per_frame": (cpu - tracing_cpu) / n, "cpu_s_per_frame": cpu / n,
+            "stages": {k: {"cpu_s_per_frame": stage_cpu[k] / n, "wall_s_per_frame": stage_wall[k] / n}
+                       for k in sorted(stage_cpu, key=lambda k: -stage_cpu[k])}}
 
 
 def _machine() -> str:

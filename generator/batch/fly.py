@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .overlap import SinkThread
+
 
 def object_matrices_over(sim, frames: int) -> np.ndarray:
     """(T, D, 4, 4) world_from_object of the dynamic objects at trajectory frames 0..T-1
@@ -55,11 +57,15 @@ def scene_bounds(parts, object_matrices: np.ndarray, dynamic_objects: list[str])
 
 
 def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None, outputs=None,
-        on_frame=None) -> tuple[list[float], int]:
+        on_frame=None, overlap: bool | None = None) -> tuple[list[float], int]:
     """Render every frame of ``traj`` with the modalities ``outputs`` (default: all) and hand
     them to every registered sink, writing into ``out``; then ``trajectory.npz``. ``exports``:
     values of the exports' options (RunConfig.exports; the others at their defaults).
-    ``on_frame()`` is called after each frame (progress). Returns
+    ``on_frame()`` is called after each frame (progress). ``overlap``: the sinks write frame t
+    in a thread of their own while frame t + 1 renders (generator/batch/overlap.py; False:
+    in this thread, between renders; the same bytes either way; default: when Cycles renders
+    on a GPU, whose CPU cores would otherwise wait, not when it renders on every CPU core).
+    Returns
     (coverage per frame, visible point observations)."""
     from exporters.modalities import resolve
     from exporters.sinks import FrameRecord, TrajectoryContext, load_sinks
@@ -83,26 +89,29 @@ def fly(sim, traj, out: Path, seed: int, plan=None, exports: dict | None = None,
         clip=(float(sim.clip_start), float(sim.clip_end)),
         scene_bounds=scene_bounds(parts, matrices, sim.dynamic_objects), lens=sim.lens, image_sensor=sim.image_sensor,
         rolling=rolling_camera(sim, np.asarray(traj.poses), matrices))
-    sinks = [factory(context) for factory in load_sinks().values()]
+    if overlap is None:
+        overlap = sim.render_device != "CPU"
+    sinks = SinkThread([factory(context) for factory in load_sinks().values()], threaded=overlap)
     sim.reset_observations()
     coverage, tracks = [], 0
-    for i, pose in enumerate(context.poses):
-        sim.set_frame(1 + i)
-        sim.set_world_from_camera(pose, check_collisions=False)
-        r = sim.render_outputs(names, context.poses, matrices, i)
-        sim.compute_point_cloud()  # coverage: points seen within the Simulator's max_pcl_depth
-        # tracks and COLMAP observations: every point the image shows, at any depth
-        points, _, visible = sim.compute_point_cloud(update_mask=False, max_depth=math.inf)
-        record = FrameRecord(i, float(context.timestamps[i]), pose, {n: r.outputs[n] for n in names}, points, visible,
-                             sim.dynamic_object_matrices(), sim.coverage, r.exposure_gain)
-        for sink in sinks:
-            sink.add_frame(record)
-        coverage.append(sim.coverage)
-        tracks += int(visible.sum())
-        if on_frame is not None:
-            on_frame()
-    for sink in sinks:
-        sink.close()
+    try:
+        for i, pose in enumerate(context.poses):
+            sim.set_frame(1 + i)
+            sim.set_world_from_camera(pose, check_collisions=False)
+            r = sim.render_outputs(names, context.poses, matrices, i)
+            sim.compute_point_cloud()  # coverage: points seen within the Simulator's max_pcl_depth
+            # tracks and COLMAP observations: every point the image shows, at any depth
+            points, _, visible = sim.compute_point_cloud(update_mask=False, max_depth=math.inf)
+            sinks.put(FrameRecord(i, float(context.timestamps[i]), pose, {n: r.outputs[n] for n in names}, points,
+                                  visible, sim.dynamic_object_matrices(), sim.coverage, r.exposure_gain))
+            coverage.append(sim.coverage)
+            tracks += int(visible.sum())
+            if on_frame is not None:
+                on_frame()
+    except BaseException:
+        sinks.abandon()
+        raise
+    sinks.close()
     traj.save(out / "trajectory.npz")
     return coverage, tracks
 
