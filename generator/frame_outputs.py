@@ -79,13 +79,19 @@ def render_outputs(sim, names=None, poses=None, object_matrices=None, index: int
                          "least two frames")
     if sim.readout_s > 0 and rendered and not computed:
         sim.rolling_geometry(poses, object_matrices, index, normals=False)  # the render's depth, labels, ids
-    # the pixel-centre cast first: render()'s depth, labels and ids reuse it (same pose and frame)
-    g = pixel_geometry(sim, poses, object_matrices, index) if computed else None
+    # one pixel-centre cast for the render's depth, labels and ids and the geometry modalities:
+    # with a global shutter it runs beside Blender's render (with normals when a geometry
+    # modality needs them) and the geometry reuses it; a rolling shutter's rows are cast
+    # first and the render reuses them
+    rows_first = sim.readout_s > 0 or not rendered
+    g = pixel_geometry(sim, poses, object_matrices, index) if computed and rows_first else None
     if rendered:
         moving = sim.camera_motion(poses, index) if poses is not None else contextlib.nullcontext()
         with moving:  # the camera moves along the trajectory while the shutter is open
-            out = sim.render(outputs=rendered)
+            out = sim.render(outputs=rendered, normals=bool(computed) and not rows_first)
     else:
         out = RenderOutput(None, None, None, None, None, sim.K.copy(), sim.get_world_from_camera(), sim.frame)
+    if computed and g is None:
+        g = pixel_geometry(sim, poses, object_matrices, index)
     out.extra.update({n: MODALITIES[n].compute(g) for n in computed})
     return out

@@ -441,7 +441,7 @@ class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, Shutters, PaperAP
 
         return render_outputs(self, names, poses, object_matrices, index)
 
-    def render(self, engine: str | None = None, outputs=()) -> RenderOutput:
+    def render(self, engine: str | None = None, outputs=(), normals: bool = False) -> RenderOutput:
         """Render the current view: ``rgb, depth, seg = sim.render()`` (one Blender render).
 
         See :class:`generator.passes.RenderOutput` for shapes, units and conventions; the
@@ -450,6 +450,8 @@ class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, Shutters, PaperAP
         the same on every device); colour from Blender. ``engine="raycast"`` returns
         :meth:`render_geometry` instead (no Blender render, no RGB). ``outputs``: further
         ``render`` modalities (exporters/modalities.py) to render, by name, into ``out.extra``.
+        ``normals``: the pixel-centre cast that runs while Blender renders also finds the
+        normals, kept for :meth:`render_geometry` of this view (which then casts nothing).
         """
         if engine == "raycast":
             return self.render_geometry()
@@ -458,7 +460,8 @@ class Simulator(CameraMoves, LidarScans, Lenses, ImageSensors, Shutters, PaperAP
         self._check_current()
         self._check_rolling_view()
         out = self._views.render(self._camera_model(), self._world_from_camera, self.frame,
-                                 self.segmentation_sensitivity, self.ground_truth, outputs)
+                                 self.segmentation_sensitivity, self.ground_truth, outputs,
+                                 check_flag("normals", normals))
         self.last_render_timings = dict(self._views.last_timings)
         return self._sense(out)
 

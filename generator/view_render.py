@@ -57,11 +57,13 @@ class ViewRenderer:
         return self.pixel_truth.hits(camera, world_from_camera, normals)
 
     def render(self, camera: CameraModel, world_from_camera: np.ndarray, frame: int,
-               segmentation_sensitivity: float, ground_truth: str, outputs=()) -> RenderOutput:
+               segmentation_sensitivity: float, ground_truth: str, outputs=(), normals: bool = False) -> RenderOutput:
         """One Blender render of the view (the scene's camera already at ``world_from_camera``),
         with depth, labels and ids from ``ground_truth`` ('geometry' or 'renderer') and the
         further ``render`` modalities ``outputs`` names (in ``extra``). The render has the
-        passes of these modalities on and every other registered modality's off."""
+        passes of these modalities on and every other registered modality's off. With
+        ``normals`` the cast beside Blender's render also finds the normals (kept for the
+        geometry of this view)."""
         ground_truth = check_ground_truth(ground_truth)
         names = rendered_modalities(outputs)
         if self.renderer is None:
@@ -71,7 +73,7 @@ class ViewRenderer:
         off = [p for name, p in blender_passes().items() if name not in passes]
         # with ray-cast ground truth the pixel-centre cast runs while Blender renders; the
         # answer is kept by pixel_truth for _ground_truth_maps
-        cast = (lambda: self.hits(camera, world_from_camera, False)) if ground_truth == "geometry" else None
+        cast = (lambda: self.hits(camera, world_from_camera, normals)) if ground_truth == "geometry" or normals else None
         decoded = self.renderer.render(passes.values(), alongside=cast, off=off)
         t0 = time.perf_counter()
         arrays = {n: MODALITIES[n].from_render(decoded) for n in names if not MODALITIES[n].truth}
