@@ -201,6 +201,7 @@ class Sequence:
         # seconds from the first row's time to the last's (0: a global shutter; docs/cameras.md):
         # row r shows the scene at timestamps[t] + ((r + 1) / height - 1/2) x readout_s
         self.readout_s = self._frames.readout_s
+        self._rolling = None  # the rows' motion (generator/geometry/rolling.py), made on first use
         if (self._frames.width, self._frames.height) != (self.width, self.height):
             raise DatasetError(f"{folder / 'frames.json'}: frames of {self._frames.width}x{self._frames.height} "
                                f"pixels, cameras of {self.width}x{self.height}; regenerate this seed with python -m generator")
@@ -247,6 +248,25 @@ class Sequence:
         elif ids.dtype.kind not in "iu" or ids.min() < 0 or ids.max() >= n:
             raise IndexError(f"point ids must be integers in 0..{n - 1}")
         return _checked(self.tracks.positions, t, ids)
+
+    def project_points(self, t: int, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where points ``ids`` land in frame t's image: (pixels (n, 2) as (x, y), planar depth
+        (n,)), through the lens and, on a rolling-shutter seed, at the row that sees each one
+        (generator/geometry/rolling.py; NaN where no row sees it once), as tracks.h5 stores
+        the visible ones."""
+        from generator.geometry.camera import project
+
+        xyz = self.point_positions(t, ids)
+        if self.readout_s == 0:
+            return project(xyz, self.poses[t], self.K, self.lens)
+        from generator.geometry.rolling import RollingCamera, RollingShutter
+
+        if self._rolling is None:
+            self._rolling = RollingCamera(RollingShutter(self.readout_s, self.height), self.timestamps, self.poses,
+                                          self.object_matrices)
+        ids = np.asarray(ids, np.int64)
+        return self._rolling.project(t, self.points["local"][ids], self.points["dynamic_object"][ids], self.K,
+                                     self.lens)
 
     @cached_property
     def points(self) -> dict:
@@ -368,6 +388,9 @@ class Scene:
                                f"{', '.join(rectified) or 'none; make one with --stereo B'})")
         kind, baseline = pairs[camera]
         left = self[kind]
+        if not left.lens.ideal:
+            raise DatasetError(f"{camera!r} and {kind!r} see through a {left.lens.model} lens: a pair is rectified only "
+                               "with the pinhole (undistort and rectify it first)")
         depth = np.asarray(left.read(i, ["depth"])["depth"], np.float64)
         with np.errstate(divide="ignore"):
             return np.where(np.isfinite(depth), left.K[0, 0] * baseline / depth, 0.0).astype(np.float32)

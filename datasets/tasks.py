@@ -168,8 +168,6 @@ class ClipDataset(TaskDataset):
         return len(self.index)
 
     def __getitem__(self, i: int) -> dict:
-        from generator.geometry.camera import project
-
         s, kind, start = self.index[check_index(i, len(self), "ClipDataset item")]
         seq: Sequence = self.scenes[s][kind]
         times = [start + k * self.stride for k in range(self.length)]
@@ -183,7 +181,7 @@ class ClipDataset(TaskDataset):
         visible = np.zeros((self.length, len(ids)), bool)
         for k, t in enumerate(times):
             xyz[k] = seq.point_positions(t, ids)
-            xy[k], depth[k] = project(xyz[k], seq.poses[t], seq.K, seq.lens)
+            xy[k], depth[k] = seq.project_points(t, ids)  # through the lens (and a rolling shutter)
             visible[k] = np.isin(ids, seq.visible_tracks(t)["ids"])
         sample = {"frames": [dict(f.outputs) | {"K": f.K, "pose": f.pose, "timestamp": f.timestamp} for f in frames],
                   "tracks": {"ids": ids, "xy": xy, "visible": visible, "depth": depth, "xyz": xyz},

@@ -63,9 +63,19 @@ def write_rig_colmap(seed_folder: Path, folders: list[str], rig_from_camera: np.
                      text: bool) -> "pycolmap.Reconstruction":  # noqa: F821
     """``target/sparse/0`` and ``target/points3D.ply`` of the rig cameras flown in ``folders``
     (the reference first; ``rig_from_camera`` (C - 1, 4, 4) of the others)."""
+    readers = [TrackReader(seed_folder / f / "tracks.h5") for f in folders]
+    try:
+        return _rig_model(seed_folder, folders, readers, rig_from_camera, target, text)
+    finally:
+        for reader in readers:
+            reader.close()
+
+
+def _rig_model(seed_folder: Path, folders: list[str], readers: list, rig_from_camera: np.ndarray, target: Path,
+               text: bool) -> "pycolmap.Reconstruction":  # noqa: F821
+    """:func:`write_rig_colmap` with the cameras' tracks open."""
     import pycolmap
 
-    readers = [TrackReader(seed_folder / f / "tracks.h5") for f in folders]
     world, static = _static_world_points(readers[0])
     rec = pycolmap.Reconstruction()
     cameras = []

@@ -175,7 +175,11 @@ class TrackWriter:
             tracks_3d[:, t] = pos
             vis_t = data["index"][data["offsets"][t]:data["offsets"][t + 1]]
             occluded[:, t] = ~np.isin(ids, vis_t)
-        q_t = first[ids]
+        # a rolling shutter may find no row that sees a point once (NaN): not visible there
+        occluded |= ~np.isfinite(tracks).all(axis=2)
+        seen = (~occluded).any(axis=1)
+        ids, tracks, occluded, tracks_3d = ids[seen], tracks[seen], occluded[seen], tracks_3d[seen]
+        q_t = np.argmax(~occluded, axis=1)  # the first frame that sees each point
         q_xy = tracks[np.arange(len(ids)), q_t]
         g = f.create_group("tapvid")
         g.attrs["conventions"] = "TAP-Vid: query_points (t, y, x); tracks (x, y) pixels; occluded True = not visible"

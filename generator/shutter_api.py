@@ -45,6 +45,7 @@ class Shutters:
         apply_shutter(seconds, self.fps, readout_s)
         self.shutter_s, self.readout_s = seconds, readout_s
         self._rolling_view = None  # no view cast through this shutter yet
+        self._views.pixel_truth.forget()  # nor kept for the next render
         return seconds
 
     def rolling_geometry(self, poses: np.ndarray, object_matrices: np.ndarray, index: int, normals: bool = True):

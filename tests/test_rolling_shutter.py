@@ -148,6 +148,9 @@ def test_the_batch_job_records_the_readout_and_places_tracks_at_their_rows(tmp_p
             theirs, _ = cv2.projectPoints(p[None], rvec, -pose[:3, :3].T @ pose[:3, 3], sequence.K, None)
             assert np.allclose(theirs[0, 0], (u, v), atol=2e-3)  # stored float32
             checked += 1
+        # the loaders place every visible point as tracks.h5 does
+        placed, _ = sequence.project_points(t, index)
+        assert np.allclose(placed, xy, atol=1e-3, equal_nan=True)
     assert checked > 100
 
 

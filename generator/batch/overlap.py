@@ -32,7 +32,8 @@ class SinkThread:
 
     def __init__(self, sinks: list, threaded: bool = True, depth: int = DEPTH):
         self.sinks = sinks
-        self.error: BaseException | None = None
+        self.error: BaseException | None = None  # a sink's error, raised once in the loop's thread
+        self.failed = False  # a sink failed: nothing more is written
         self.thread = None
         if threaded:
             self.queue: queue.Queue = queue.Queue(maxsize=depth)
@@ -44,11 +45,11 @@ class SinkThread:
             record = self.queue.get()
             if record is None:
                 return
-            if self.error is None:  # after an error the rest is drained, not written
+            if not self.failed:  # after an error the rest is drained, not written
                 try:
                     self._hand(record)
                 except BaseException as exc:  # raised in the loop's thread
-                    self.error = exc
+                    self.error, self.failed = exc, True
 
     def _hand(self, record) -> None:
         for sink in self.sinks:

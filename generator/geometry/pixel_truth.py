@@ -123,6 +123,11 @@ class PixelTruth:
                          np.concatenate([h.normal for h in pieces]) if normals else None)
         return hits, poses, rows_objects, bound
 
+    def forget(self) -> None:
+        """Drop the kept answer (the camera's shutter changed: a held rolling-shutter cast is
+        no longer the view's)."""
+        self._key, self._hits = None, None
+
     def hold(self, hits: PixelHits, world_from_camera: np.ndarray) -> None:
         """Keep ``hits`` as the answer for the pose ``world_from_camera`` at the current state
         (a rolling-shutter cast, which the render of that view reads)."""
