@@ -66,7 +66,7 @@ class Shutters:
         key = (self.readout_s, self.height, self.fps, poses.tobytes(), object_matrices.tobytes())
         cached = getattr(self, "_rolling_camera", None)
         if cached is None or cached[0] != key:  # one per trajectory: its motion tracks are made once
-            radius = [_radius(self._parts[i]) for i in part_of_object]
+            radius = [self._parts[i].radius() for i in part_of_object]
             times = np.arange(len(poses), dtype=np.float64) / self.fps
             cached = (key, RollingCamera(RollingShutter(self.readout_s, self.height), times, poses, object_matrices,
                                          radius))
@@ -99,9 +99,3 @@ class Shutters:
             raise ValueError(f"poses[{index}] is not the Simulator's current pose")
         path = {self.frame + k: poses[index + k] for k in (-1, 0, 1) if 0 <= index + k < len(poses)}
         return CameraPath(self._camera, path, self.get_world_from_camera())
-
-
-def _radius(part) -> float:
-    """The largest distance of a part's vertices from its own origin (metres)."""
-    v = np.asarray(part.vertices, dtype=np.float64)
-    return float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2], initial=0.0)))

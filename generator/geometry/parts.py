@@ -40,6 +40,14 @@ class MeshPart:
     face_reflectivity: np.ndarray | None = None
     face_transparent: np.ndarray | None = None
 
+    def radius(self) -> float:
+        """The largest distance of the part's vertices from its own origin (metres, in its own
+        frame: how far a point of it may swing when it turns)."""
+        if not len(self.vertices):
+            return 0.0
+        v = np.asarray(self.vertices, dtype=np.float64)
+        return float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])))
+
     def world_vertices(self) -> np.ndarray:
         """(V, 3) float64 world positions, the same bits on every CPU (camera.rows_times)."""
         from .camera import apply_affine

@@ -69,7 +69,7 @@ class Scanner:
             _face_values(p.face_reflectivity, len(p.faces), physics.DEFAULT_REFLECTIVITY, np.float64) for p in geometry.parts])
         self.transparent = np.concatenate([np.zeros(0, bool)] + [
             _face_values(p.face_transparent, len(p.faces), False, bool) for p in geometry.parts])
-        self.radius = {i: _radius(geometry.parts[i]) for i in geometry.dynamic_index}
+        self.radius = {i: geometry.parts[i].radius() for i in geometry.dynamic_index}
         self._glass_split = None
 
     @classmethod
@@ -271,11 +271,3 @@ def _face_values(values, count: int, default, dtype) -> np.ndarray:
     if values.shape != (count,):
         raise ValueError(f"per-face LiDAR optics hold {values.shape} values for {count} faces")
     return values
-
-
-def _radius(part) -> float:
-    """The largest distance of a part's vertices from its own origin (metres)."""
-    if not len(part.vertices):
-        return 0.0
-    v = np.asarray(part.vertices, dtype=np.float64)
-    return float(np.sqrt(np.max(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])))
